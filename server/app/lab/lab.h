@@ -1,0 +1,22 @@
+// conica-lab: offline commands (law curves, meshes, headless runs, experiments).
+// Each command registers itself on the CLI11 app; main() dispatches.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <string>
+
+namespace conica::lab {
+
+// A command sets *run to the function that executes it after parsing; it returns the process
+// exit status (0 success, non-zero with a message on stderr).
+using Runner = std::function<int()>;
+
+void register_law(CLI::App& app, Runner* run);
+
+// Runs `/usr/bin/python3 scripts/NAME.py ARGS...` from the source tree to draw a figure.
+// Returns the exit status; prints why on failure.
+int run_plot_script(const std::string& name, const std::string& args);
+
+}  // namespace conica::lab

@@ -1,0 +1,33 @@
+#include <cstdio>
+#include <cstdlib>
+
+#include "app/lab/lab.h"
+
+#ifndef CONICA_SOURCE_DIR
+#define CONICA_SOURCE_DIR "."
+#endif
+
+namespace conica::lab {
+
+int run_plot_script(const std::string& name, const std::string& args) {
+  const std::string cmd = std::string("/usr/bin/python3 '") + CONICA_SOURCE_DIR + "/scripts/" +
+                          name + ".py' " + args;
+  const int rc = std::system(cmd.c_str());
+  if (rc != 0) std::fprintf(stderr, "conica-lab: plotting failed (%s)\n", cmd.c_str());
+  return rc == 0 ? 0 : 1;
+}
+
+}  // namespace conica::lab
+
+int main(int argc, char** argv) {
+  CLI::App app{"conica-lab: conical mass-spring experiments, offline"};
+  app.require_subcommand(1);
+  conica::lab::Runner run;
+  conica::lab::register_law(app, &run);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  return run ? run() : 0;
+}
