@@ -4,7 +4,11 @@
 #include <cmath>
 #include <cstdint>
 #include <numeric>
+#include <tuple>
 #include <unordered_map>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
 
 namespace conica::io {
 

@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   conica::lab::Runner run;
   conica::lab::register_law(app, &run);
+  conica::lab::register_mesh(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
