@@ -16,6 +16,43 @@ std::string fmt(double v) {
   return os.str();
 }
 
+// The nonlinear-phase inverse shared by evaluate() and evaluate_batch(), so that both give the same
+// bits. For a deflection in [delta_t, delta_cap]:
+//   s = sqrt(S - delta), u = s / h, segment i = min(floor(u), N - 1), t = u - i
+//   x0 = p_i(t) (cubic Hermite of x = r_t - r1), then one Newton step on
+//   phi(x) = x sqrt(w(r1 + x)) = s / sqrt(c A) with the table's slope dx/ds,
+//   force = A / r^3 and stiffness = 1 / C with the compliance C = c x (2 r1 + x)(r^2 + r1^2)
+//   (= c (r^4 - r1^4) without cancellation); both from the single reciprocal q = 1 / (r C).
+// At the solid height itself (x = 0) q is infinite and the results are NaN: callers select the
+// solid branch there. Inline and free of branches, so that the array loop vectorises.
+struct NonlinearKernel {
+  double S, inv_h, r1, A, c, sqrt_cA;
+  const double* __restrict c0;
+  const double* __restrict c1;
+  const double* __restrict c2;
+  const double* __restrict c3;
+  int last;  // N - 1
+
+  inline void operator()(double delta, double* force, double* stiffness) const {
+    const double s = std::sqrt(S - delta);
+    const double u = s * inv_h;
+    const int i = std::min(static_cast<int>(u), last);
+    const double t = u - i;
+    const double a0 = c0[i], a1 = c1[i], a2 = c2[i], a3 = c3[i];
+    const double x0 = a0 + t * (a1 + t * (a2 + t * a3));
+    const double dxds = (a1 + t * (2.0 * a2 + 3.0 * t * a3)) * inv_h;
+    const double ir0 = 1.0 / (r1 + x0);
+    const double w = ir0 * (3.0 + ir0 * r1 * (2.0 + ir0 * r1));
+    const double x = x0 - (x0 * std::sqrt(w) * sqrt_cA - s) * dxds;
+    const double r = r1 + x;
+    const double C = c * x * (2.0 * r1 + x) * (r * r + r1 * r1);
+    const double q = 1.0 / (r * C);
+    const double ir = C * q;
+    *force = A * ir * ir * ir;
+    *stiffness = r * q;
+  }
+};
+
 }  // namespace
 
 std::string validate(const ConicalCard& c) {
@@ -75,9 +112,17 @@ ConicalLaw::ConicalLaw(const ConicalCard& card, double stiffness_cap) : card_(ca
     rcap_ = r2_;
     dcap_ = dt_;
   } else {
+    // r^4 - r1^4 = 1 / (c kcap), solved for x = r - r1 without cancellation: a start from the
+    // fourth root, one Newton step on x (2 r1 + x)(r^2 + r1^2). Then S - delta_cap in the
+    // cancellation-free form c A x^2 (3 r^2 + 2 r1 r + r1^2) / r^3 (see gap_from_s).
     kcap_ = stiffness_cap;
-    rcap_ = std::pow(r1p4_ + 1.0 / (c_ * kcap_), 0.25);
-    dcap_ = c_ * A_ * (4.0 * r2_ - 3.0 * rcap_ - r1p4_ / (rcap_ * rcap_ * rcap_));
+    const double K = 1.0 / (c_ * kcap_);
+    double x = std::pow(r1p4_ + K, 0.25) - r1_;
+    double r = r1_ + x;
+    x -= (x * (2.0 * r1_ + x) * (r * r + r1_ * r1_) - K) / (4.0 * r * r * r);
+    r = r1_ + x;
+    rcap_ = r;
+    dcap_ = S_ - c_ * A_ * x * x * (3.0 * r * r + 2.0 * r1_ * r + r1_ * r1_) / (r * r * r);
   }
   Pcap_ = A_ / (rcap_ * rcap_ * rcap_);
   kcap_force_ = std::isinf(kcap_) ? 0.0 : kcap_;
@@ -86,7 +131,7 @@ ConicalLaw::ConicalLaw(const ConicalCard& card, double stiffness_cap) : card_(ca
   // Inverse table over s = sqrt(S - delta) on [sqrt(S - dcap), sqrt(S - dt)].
   const double s_lo = std::sqrt(std::max(0.0, S_ - dcap_));
   s_max_ = std::sqrt(std::max(0.0, S_ - dt_));
-  table_.assign(kTableSegments, {0, 0, 0, 0});
+  table_.assign(4 * kTableSegments, 0.0);
   if (s_max_ > s_lo) {
     const double h = (s_max_ - 0.0) / kTableSegments;
     inv_h_ = 1.0 / h;
@@ -110,7 +155,10 @@ ConicalLaw::ConicalLaw(const ConicalCard& card, double stiffness_cap) : card_(ca
       const double a = r0, b = m0 * h;
       const double cc = 3.0 * (r1n - r0) - 2.0 * m0 * h - m1 * h;
       const double dd = 2.0 * (r0 - r1n) + m0 * h + m1 * h;
-      table_[i] = {a, b, cc, dd};
+      table_[i] = a;
+      table_[kTableSegments + i] = b;
+      table_[2 * kTableSegments + i] = cc;
+      table_[3 * kTableSegments + i] = dd;
       r0 = r1n;
       m0 = m1;
     }
@@ -194,7 +242,7 @@ double ConicalLaw::energy_at_radius(double rt) const {
 LawSample ConicalLaw::evaluate_exact(double delta) const {
   if (delta < 0) return {K0_ * delta, K0_, Phase::kTension};
   if (delta <= dt_) return {K0_ * delta, K0_, Phase::kLinear};
-  if (delta <= dcap_) {
+  if (delta < dcap_) {
     const double x = gap_from_s(std::sqrt(S_ - delta));
     const double rt = r1_ + x;
     const double k = 1.0 / (c_ * x * (2.0 * r1_ + x) * (rt * rt + r1_ * r1_));
@@ -206,57 +254,51 @@ LawSample ConicalLaw::evaluate_exact(double delta) const {
 
 LawSample ConicalLaw::evaluate(double delta) const {
   if (delta <= dt_) return {K0_ * delta, K0_, delta < 0 ? Phase::kTension : Phase::kLinear};
-  if (delta > dcap_) {
+  if (delta >= dcap_) {
     if (std::isinf(kcap_)) return {Ps_, kInf, Phase::kSolid};
     return {Pcap_ + kcap_ * (delta - dcap_), kcap_, delta > S_ ? Phase::kSolid : Phase::kNonlinear};
   }
-  // Table lookup of x = r_t - r1 in s = sqrt(S - delta), then one Newton step on
-  // phi(x) = s / sqrt(c A) with the table's slope. r^4 - r1^4 = x (2 r1 + x)(r^2 + r1^2) has no
-  // cancellation near the solid height.
-  const double s = std::sqrt(S_ - delta);
-  const double u = s * inv_h_;
-  const int i = std::min(static_cast<int>(u), kTableSegments - 1);
-  const double t = u - i;
-  const auto& k = table_[i];
-  double x = k[0] + t * (k[1] + t * (k[2] + t * k[3]));
-  if constexpr (kNewtonPolish) {
-    const double dxds = (k[1] + t * (2.0 * k[2] + 3.0 * t * k[3])) * inv_h_;
-    const double r = r1_ + x, ir = 1.0 / r;
-    const double w = ir * (3.0 + ir * r1_ * (2.0 + ir * r1_));
-    x -= (x * std::sqrt(w) * sqrt_cA_ - s) * dxds;
-  }
-  const double r = r1_ + x, ir = 1.0 / r;
-  const double ir3 = ir * ir * ir;
-  return {A_ * ir3, 1.0 / (c_ * x * (2.0 * r1_ + x) * (r * r + r1_ * r1_)), Phase::kNonlinear};
+  const double* tab = table_.data();
+  const NonlinearKernel kern{S_,  inv_h_, r1_, A_, c_, sqrt_cA_, tab, tab + kTableSegments,
+                             tab + 2 * kTableSegments, tab + 3 * kTableSegments,
+                             kTableSegments - 1};
+  LawSample out{0, 0, Phase::kNonlinear};
+  kern(delta, &out.force, &out.stiffness);
+  return out;
 }
 
 void ConicalLaw::evaluate_batch(const double* __restrict deflection, double* __restrict force,
                                 double* __restrict stiffness, int n) const {
-  const double* __restrict tab = table_.front().data();
-  const double dt = dt_, dcap = dcap_, S = S_, inv_h = inv_h_, r1 = r1_, A = A_, c = c_;
-  const double sqrt_cA = sqrt_cA_, K0 = K0_, Pcap = Pcap_, kcap = kcap_, kcf = kcap_force_;
-  for (int i = 0; i < n; ++i) {
-    const double dl = deflection[i];
-    // Nonlinear branch on the deflection clamped into its range; selected below.
-    const double dc = std::min(std::max(dl, dt), dcap);
-    const double s = std::sqrt(S - dc);
-    const double u = s * inv_h;
-    const int j = std::min(static_cast<int>(u), kTableSegments - 1);
-    const double t = u - j;
-    const double* k = tab + 4 * j;
-    double x = k[0] + t * (k[1] + t * (k[2] + t * k[3]));
-    if constexpr (kNewtonPolish) {
-      const double dxds = (k[1] + t * (2.0 * k[2] + 3.0 * t * k[3])) * inv_h;
-      const double ir = 1.0 / (r1 + x);
-      const double w = ir * (3.0 + ir * r1 * (2.0 + ir * r1));
-      x -= (x * std::sqrt(w) * sqrt_cA - s) * dxds;
+  const double* tab = table_.data();
+  const NonlinearKernel kern{S_,  inv_h_, r1_, A_, c_, sqrt_cA_, tab, tab + kTableSegments,
+                             tab + 2 * kTableSegments, tab + 3 * kTableSegments,
+                             kTableSegments - 1};
+  const double dt = dt_, dcap = dcap_, K0 = K0_, Pcap = Pcap_, kcap = kcap_, kcf = kcap_force_;
+  for (int begin = 0; begin < n; begin += kBatchChunk) {
+    const int m = std::min(kBatchChunk, n - begin);
+    const double* __restrict dl = deflection + begin;
+    double* __restrict f = force + begin;
+    double* __restrict k = stiffness + begin;
+    // A chunk with every spring in tension or in the linear phase is a Hooke chunk.
+    int nonlinear = 0;
+    for (int i = 0; i < m; ++i) nonlinear |= dl[i] > dt;
+    if (!nonlinear) {
+      for (int i = 0; i < m; ++i) {
+        f[i] = K0 * dl[i];
+        k[i] = K0;
+      }
+      continue;
     }
-    const double r = r1 + x, ir = 1.0 / r;
-    const double fN = A * ir * ir * ir;
-    const double kN = 1.0 / (c * x * (2.0 * r1 + x) * (r * r + r1 * r1));
-    const bool lin = dl <= dt, over = dl > dcap;
-    force[i] = lin ? K0 * dl : (over ? Pcap + kcf * (dl - dcap) : fN);
-    stiffness[i] = lin ? K0 : (over ? kcap : kN);
+    // Pass 1: the nonlinear branch for every spring, on its deflection clamped into
+    // [delta_t, delta_cap]. Pass 2: select the phase. Keeping the selection out of pass 1 keeps
+    // the gathers and square roots unconditional, which is what lets GCC vectorise pass 1.
+    for (int i = 0; i < m; ++i) kern(std::min(std::max(dl[i], dt), dcap), &f[i], &k[i]);
+    for (int i = 0; i < m; ++i) {
+      const double x = dl[i], fn = f[i], kn = k[i];
+      const bool lin = x <= dt, over = x >= dcap;
+      f[i] = lin ? K0 * x : (over ? Pcap + kcf * (x - dcap) : fn);
+      k[i] = lin ? K0 : (over ? kcap : kn);
+    }
   }
 }
 

@@ -85,13 +85,16 @@ class ConicalLaw {
   // The inverse, P(delta), with tangent stiffness. Exact up to the cap: the bottoming radius is
   // found by a safeguarded Newton iteration to machine precision. Use for reference work.
   LawSample evaluate_exact(double delta) const;
-  // Same law from a precomputed table plus one Newton correction: relative error <= 1e-9
-  // (tests/core/conical_test.cc sweeps it), a few ns per call. The simulation's inner loop.
+  // Same law from a precomputed table plus one Newton correction: relative error <= 1e-9 in force
+  // and stiffness (tests/core/conical_test.cc sweeps it, extreme tapers included).
   LawSample evaluate(double delta) const;
 
-  // evaluate() over arrays, branch-free so that the compiler vectorises it: force[i] and
-  // stiffness[i] for deflection[i], i < n. Same values as evaluate() (the cap-free law returns
-  // force Ps and infinite stiffness at and past the solid height).
+  // evaluate() over arrays: force[i] and stiffness[i] for deflection[i], i < n; the arrays must
+  // not overlap. Bit for bit the values of evaluate() (the cap-free law returns force Ps and
+  // infinite stiffness at and past the solid height). The simulation's inner loop: it works in
+  // chunks of kBatchChunk springs; a chunk entirely in tension or the linear phase costs what a
+  // Hooke spring costs, any other chunk runs a branch-free pass that GCC vectorises (with gathers
+  // on AVX2 / AVX-512) followed by a pass that selects the phase. No allocation.
   void evaluate_batch(const double* __restrict deflection, double* __restrict force,
                       double* __restrict stiffness, int n) const;
 
@@ -119,13 +122,15 @@ class ConicalLaw {
   double kcap_force_ = 0;  // slope used for the force past the cap (0 when the cap is infinite)
   double dcap_ = 0, Pcap_ = 0, rcap_ = 0, Ecap_ = 0, Et_ = 0;
 
-  // Inverse table of x = r_t - r1 over s = sqrt(S - delta) in [0, s_max], where r_t(s) is smooth (it has a
-  // square-root singularity in delta at the solid height). Cubic Hermite per segment, stored
-  // as power-basis coefficients of the local variable.
+  // Inverse table of x = r_t - r1 over s = sqrt(S - delta) in [0, s_max], where r_t(s) is smooth
+  // (it has a square-root singularity in delta at the solid height). Cubic Hermite per segment,
+  // stored as power-basis coefficients of the local variable t in [0, 1], structure of arrays:
+  // table_[m * kTableSegments + i] is coefficient m (of t^m) of segment i, so that the array loop
+  // gathers each coefficient with one vector instruction.
   static constexpr int kTableSegments = 256;
-  static constexpr bool kNewtonPolish = true;
+  static constexpr int kBatchChunk = 256;  // springs per pass of evaluate_batch
   double s_max_ = 0, inv_h_ = 0, sqrt_cA_ = 0;
-  std::vector<std::array<double, 4>> table_;  // (kTableSegments), 32 bytes each
+  std::vector<double> table_;  // (4 x kTableSegments)
 };
 
 }  // namespace conica

@@ -5,7 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
+#include <string>
+#include <vector>
 
 namespace conica {
 namespace {
@@ -153,6 +156,9 @@ TEST(ConicalLawTest, FastEvaluationWithinOneBillionthOfExactInverse) {
       cards.push_back(c);
     }
   }
+  // Both entry points: evaluate() and evaluate_batch() (the simulation's path).
+  double worst_batch = 0;
+  std::vector<double> delta(3000), f(3000), k(3000);
   for (const auto& c : cards) {
     for (double cap : {std::numeric_limits<double>::infinity(), 1e3}) {
       ConicalLaw law(c, cap * ConicalLaw(c).k0());
@@ -160,16 +166,60 @@ TEST(ConicalLawTest, FastEvaluationWithinOneBillionthOfExactInverse) {
       for (int i = 0; i < 3000; ++i) {
         // Dense in the nonlinear phase, including its ends.
         const double t = (i < 2) ? i : u(rng);
-        const double delta = law.transition_deflection() + t * (hi - law.transition_deflection());
-        const LawSample fast = law.evaluate(delta), exact = law.evaluate_exact(delta);
+        delta[i] = law.transition_deflection() + t * (hi - law.transition_deflection());
+      }
+      law.evaluate_batch(delta.data(), f.data(), k.data(), 3000);
+      for (int i = 0; i < 3000; ++i) {
+        const LawSample fast = law.evaluate(delta[i]), exact = law.evaluate_exact(delta[i]);
         worst_f = std::max(worst_f, std::abs(fast.force - exact.force) / exact.force);
-        if (std::isfinite(exact.stiffness) && exact.stiffness < 1e6 * law.k0())
+        worst_batch = std::max(worst_batch, std::abs(f[i] - exact.force) / exact.force);
+        if (std::isfinite(exact.stiffness) && exact.stiffness < 1e6 * law.k0()) {
           worst_k = std::max(worst_k, std::abs(fast.stiffness - exact.stiffness) / exact.stiffness);
+          worst_batch = std::max(worst_batch, std::abs(k[i] - exact.stiffness) / exact.stiffness);
+        }
       }
     }
   }
   EXPECT_LE(worst_f, 1e-9);
   EXPECT_LE(worst_k, 1e-9);
+  EXPECT_LE(worst_batch, 1e-9);
+  RecordProperty("worst_relative_error_force", std::to_string(worst_f));
+  RecordProperty("worst_relative_error_stiffness", std::to_string(worst_k));
+  std::printf("fast inverse, worst relative error: force %.3g, stiffness %.3g, batch %.3g\n",
+              worst_f, worst_k, worst_batch);
+}
+
+// evaluate_batch() gives evaluate()'s values bit for bit in every phase, on both sides of every
+// boundary, across chunk edges (n is not a multiple of the chunk) and in chunks that are entirely
+// linear (the Hooke fast path) as well as mixed ones. No NaN anywhere.
+TEST(ConicalLawTest, BatchMatchesScalarBitForBit) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<ConicalCard> cards = {Fig6Card(3), Fig6Card(0.5), Table2Card(1.5)};
+  for (double ratio : {0.001, 0.999}) cards.push_back(ConicalCard{1e5, 0.01, ratio * 10, 10, 5, 3});
+  for (const auto& c : cards) {
+    for (double cap : {std::numeric_limits<double>::infinity(), 50.0, 0.5}) {
+      const ConicalLaw law(c, cap * ConicalLaw(c).k0());  // cap 0.5 K0 <= K0: linear then cap
+      const double dt = law.transition_deflection(), dc = law.cap_deflection(), S = law.stroke();
+      std::vector<double> x;
+      for (double b : {0.0, dt, dc, S}) {
+        x.insert(x.end(), {b, std::nextafter(b, -1e300), std::nextafter(b, 1e300)});
+      }
+      for (int i = 0; i < 700; ++i) x.push_back(-dt + u(rng) * (1.2 * S + dt));  // mixed chunks
+      for (int i = 0; i < 600; ++i) x.push_back((2 * u(rng) - 1) * dt);          // linear chunks
+      for (int i = 0; i < 300; ++i) x.push_back(dt + u(rng) * (dc - dt));        // nonlinear
+      const int n = static_cast<int>(x.size());
+      ASSERT_NE(n % 256, 0);
+      std::vector<double> f(n), k(n);
+      law.evaluate_batch(x.data(), f.data(), k.data(), n);
+      for (int i = 0; i < n; ++i) {
+        const LawSample s = law.evaluate(x[i]);
+        ASSERT_FALSE(std::isnan(f[i]) || std::isnan(k[i])) << "delta = " << x[i];
+        ASSERT_EQ(f[i], s.force) << "delta = " << x[i] << ", i = " << i;
+        ASSERT_EQ(k[i], s.stiffness) << "delta = " << x[i] << ", i = " << i;
+      }
+    }
+  }
 }
 
 TEST(ConicalLawTest, StiffnessIsTheDerivativeOfForce) {
