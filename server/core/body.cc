@@ -1,0 +1,375 @@
+#include "core/body.h"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <set>
+#include <sstream>
+
+namespace conica {
+namespace {
+
+// Corner c of a VTK-ordered hexahedron has lattice coordinates kCorner[c] in {0,1}^3.
+constexpr int kCorner[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                               {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+
+int pair_family(int a, int b) {
+  int differ = 0;
+  for (int k = 0; k < 3; ++k) differ += kCorner[a][k] != kCorner[b][k];
+  return differ == 1 ? kEdge : differ == 2 ? kFaceDiagonal : kBodyDiagonal;
+}
+
+struct RawSpring {
+  int i, j;
+  int family;
+  double volume_share;                 // m^3
+  std::vector<int> regions;            // region indices of the elements holding it
+};
+
+std::string fmt(double v) {
+  std::ostringstream os;
+  os.precision(6);
+  os << v;
+  return os.str();
+}
+
+}  // namespace
+
+double SpringCard::k0() const {
+  if (law == LawKind::kHooke) return hooke_k;
+  return ConicalLaw(conical).k0();
+}
+
+double Model::total_mass() const { return std::accumulate(mass.begin(), mass.end(), 0.0); }
+
+const char* integrator_name(Integrator i) {
+  switch (i) {
+    case Integrator::kSymplecticEuler: return "symplectic";
+    case Integrator::kExplicitEuler: return "explicit";
+    case Integrator::kImplicitEuler: return "implicit";
+  }
+  return "unknown";
+}
+
+Mesh make_box_lattice(const Vec3& size, const std::array<int, 3>& cells) {
+  Mesh m;
+  const int nx = cells[0] + 1, ny = cells[1] + 1, nz = cells[2] + 1;
+  auto id = [&](int i, int j, int k) { return i + nx * (j + ny * k); };
+  m.nodes.reserve(static_cast<size_t>(nx) * ny * nz);
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i)
+        m.nodes.emplace_back(size.x() * i / cells[0], size.y() * j / cells[1],
+                             size.z() * k / cells[2]);
+  for (int k = 0; k < cells[2]; ++k)
+    for (int j = 0; j < cells[1]; ++j)
+      for (int i = 0; i < cells[0]; ++i) {
+        std::array<int, 8> h;
+        for (int c = 0; c < 8; ++c) h[c] = id(i + kCorner[c][0], j + kCorner[c][1], k + kCorner[c][2]);
+        m.hexahedra.push_back(h);
+      }
+  return m;
+}
+
+double tet_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  return (b - a).cross(c - a).dot(d - a) / 6.0;
+}
+
+double hex_volume(const Mesh& mesh, const std::array<int, 8>& h) {
+  // Six tetrahedra around the diagonal 0-6.
+  static constexpr int kTets[6][4] = {{0, 1, 2, 6}, {0, 2, 3, 6}, {0, 3, 7, 6},
+                                      {0, 7, 4, 6}, {0, 4, 5, 6}, {0, 5, 1, 6}};
+  double v = 0;
+  for (const auto& t : kTets)
+    v += tet_volume(mesh.nodes[h[t[0]]], mesh.nodes[h[t[1]]], mesh.nodes[h[t[2]]],
+                    mesh.nodes[h[t[3]]]);
+  return v;
+}
+
+namespace {
+
+// Outward boundary triangles: faces used by exactly one element.
+std::vector<std::array<int, 3>> boundary_triangles(const Mesh& m) {
+  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> faces;
+  auto add = [&](std::array<int, 3> f) {
+    std::array<int, 3> key = f;
+    std::sort(key.begin(), key.end());
+    auto [it, inserted] = faces.try_emplace(key, 1, f);
+    if (!inserted) ++it->second.first;
+  };
+  for (const auto& t : m.tetrahedra) {
+    // Faces oriented outward for a positively oriented tetrahedron.
+    add({t[0], t[2], t[1]});
+    add({t[0], t[1], t[3]});
+    add({t[1], t[2], t[3]});
+    add({t[0], t[3], t[2]});
+  }
+  // Hexahedron faces are keyed by their four nodes (neighbours may split them differently).
+  std::map<std::array<int, 4>, std::pair<int, std::array<int, 4>>> quads;
+  for (const auto& h : m.hexahedra) {
+    static constexpr int kQuads[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                                         {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
+    for (const auto& q : kQuads) {
+      std::array<int, 4> f = {h[q[0]], h[q[1]], h[q[2]], h[q[3]]}, key = f;
+      std::sort(key.begin(), key.end());
+      auto [it, inserted] = quads.try_emplace(key, 1, f);
+      if (!inserted) ++it->second.first;
+    }
+  }
+  std::vector<std::array<int, 3>> out;
+  for (const auto& [key, v] : faces)
+    if (v.first == 1) out.push_back(v.second);
+  for (const auto& [key, v] : quads)
+    if (v.first == 1) {
+      const auto& q = v.second;
+      out.push_back({q[0], q[1], q[2]});
+      out.push_back({q[0], q[2], q[3]});
+    }
+  return out;
+}
+
+bool axis_match(const SpringGroupSpec& g, const Vec3& dir) {
+  if (g.axis.squaredNorm() == 0) return true;
+  const double c = std::abs(g.axis.normalized().dot(dir.normalized()));
+  return c >= std::cos(g.max_angle_deg * M_PI / 180.0) - 1e-12;
+}
+
+}  // namespace
+
+std::string build_model(const BodySpec& spec, Model* out) {
+  const Mesh& mesh = spec.mesh;
+  const int nn = static_cast<int>(mesh.nodes.size());
+  if (!(spec.density > 0) || !std::isfinite(spec.density))
+    return "density must be > 0 kg/m^3 (got " + fmt(spec.density) + ")";
+  if (nn == 0) return "the mesh has no nodes";
+  if (mesh.tetrahedra.empty() && mesh.hexahedra.empty())
+    return "the mesh has no tetrahedra or hexahedra";
+  if (spec.groups.empty()) return "no spring group: a body needs at least one spring card";
+  if (!(spec.options.dt > 0) || spec.options.substeps < 1)
+    return "dt must be > 0 s and substeps >= 1";
+  for (const auto& g : spec.groups) {
+    if (g.card.law == LawKind::kConical) {
+      const std::string e = validate(g.card.conical);
+      if (!e.empty()) return "spring group \"" + g.name + "\": " + e;
+      if (!(g.card.stiffness_cap > 1))
+        return "spring group \"" + g.name + "\": stiffness_cap must be > 1 (a multiple of K0)";
+    } else if (!(g.card.hooke_k > 0) || !std::isfinite(g.card.hooke_k)) {
+      return "spring group \"" + g.name + "\": hooke stiffness must be > 0 N/m";
+    } else if (spec.mapping == Mapping::kStrain && !(g.card.hooke_length > 0)) {
+      return "spring group \"" + g.name + "\": hooke length must be > 0 m for strain mapping";
+    }
+    if (g.card.damping < 0 || g.card.maxwell_k < 0 || g.card.maxwell_tau < 0)
+      return "spring group \"" + g.name + "\": damping and Maxwell parameters must be >= 0";
+    if (g.card.maxwell_k > 0 && !(g.card.maxwell_tau > 0))
+      return "spring group \"" + g.name + "\": maxwell_tau must be > 0 s when maxwell_k > 0";
+  }
+  for (const auto& n : mesh.nodes)
+    if (!n.allFinite()) return "the mesh has a non-finite node coordinate";
+
+  // Element volumes, lumped masses and raw springs with volume shares.
+  std::vector<double> mass(nn, 0.0);
+  std::map<std::pair<int, int>, RawSpring> springs;
+  std::vector<std::vector<int>> tet_regions(mesh.tetrahedra.size()), hex_regions(mesh.hexahedra.size());
+  for (size_t r = 0; r < mesh.regions.size(); ++r) {
+    for (int t : mesh.regions[r].tetrahedra) tet_regions.at(t).push_back(static_cast<int>(r));
+    for (int h : mesh.regions[r].hexahedra) hex_regions.at(h).push_back(static_cast<int>(r));
+  }
+  int used_families = 0;
+  for (const auto& g : spec.groups) used_families |= g.families;
+  auto add_spring = [&](int a, int b, int family, double share, const std::vector<int>& regs) {
+    if (a == b) return;
+    auto key = std::minmax(a, b);
+    auto [it, inserted] = springs.try_emplace({key.first, key.second},
+                                              RawSpring{key.first, key.second, family, 0, {}});
+    it->second.volume_share += share;
+    for (int r : regs)
+      if (std::find(it->second.regions.begin(), it->second.regions.end(), r) ==
+          it->second.regions.end())
+        it->second.regions.push_back(r);
+  };
+  for (size_t e = 0; e < mesh.tetrahedra.size(); ++e) {
+    const auto& t = mesh.tetrahedra[e];
+    const double v = std::abs(
+        tet_volume(mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]], mesh.nodes[t[3]]));
+    for (int k = 0; k < 4; ++k) mass[t[k]] += spec.density * v / 4;
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b) add_spring(t[a], t[b], kEdge, v / 6, tet_regions[e]);
+  }
+  int per_hex = 0;
+  for (int a = 0; a < 8; ++a)
+    for (int b = a + 1; b < 8; ++b) per_hex += (pair_family(a, b) & used_families) != 0;
+  for (size_t e = 0; e < mesh.hexahedra.size(); ++e) {
+    const auto& h = mesh.hexahedra[e];
+    const double v = std::abs(hex_volume(mesh, h));
+    for (int k = 0; k < 8; ++k) mass[h[k]] += spec.density * v / 8;
+    for (int a = 0; a < 8; ++a)
+      for (int b = a + 1; b < 8; ++b) {
+        const int fam = pair_family(a, b);
+        if (fam & used_families) add_spring(h[a], h[b], fam, v / per_hex, hex_regions[e]);
+      }
+  }
+
+  // Assign springs to groups (first match), sorted by group.
+  std::vector<std::vector<const RawSpring*>> by_group(spec.groups.size());
+  int unmatched = 0;
+  for (const auto& [key, s] : springs) {
+    const Vec3 dir = mesh.nodes[s.j] - mesh.nodes[s.i];
+    if (dir.norm() <= 0) {
+      return "zero-length spring between nodes " + std::to_string(s.i) + " and " +
+             std::to_string(s.j) + " (duplicate nodes: repair the mesh first)";
+    }
+    bool placed = false;
+    for (size_t g = 0; g < spec.groups.size() && !placed; ++g) {
+      const auto& gs = spec.groups[g];
+      if (!(gs.families & s.family)) continue;
+      if (!axis_match(gs, dir)) continue;
+      if (!gs.regions.empty()) {
+        bool in = false;
+        for (int r : s.regions)
+          for (const auto& name : gs.regions) in |= mesh.regions[r].name == name;
+        if (!in) continue;
+      }
+      by_group[g].push_back(&s);
+      placed = true;
+    }
+    unmatched += !placed;
+  }
+  for (size_t g = 0; g < spec.groups.size(); ++g)
+    if (by_group[g].empty())
+      return "spring group \"" + spec.groups[g].name + "\" matches no spring";
+  if (unmatched > 0)
+    return std::to_string(unmatched) + " springs match no spring group (add a catch-all group)";
+
+  Model m;
+  m.rest = mesh.nodes;
+  m.mass = mass;
+  m.fixed.assign(nn, 0);
+  m.tetrahedra = mesh.tetrahedra;
+  m.hexahedra = mesh.hexahedra;
+  m.options = spec.options;
+  m.mapping = spec.mapping;
+  m.probes = spec.probes;
+  m.planes = spec.planes;
+  for (size_t g = 0; g < spec.groups.size(); ++g) {
+    SpringGroup grp;
+    grp.name = spec.groups[g].name;
+    grp.card = spec.groups[g].card;
+    if (grp.card.law == LawKind::kConical) {
+      const double k0 = ConicalLaw(grp.card.conical).k0();
+      grp.law.emplace(grp.card.conical, grp.card.stiffness_cap * k0);
+    }
+    grp.viscous = grp.card.damping > 0 || grp.card.maxwell_k > 0;
+    grp.begin = m.num_springs();
+    const double L = grp.card.free_length();
+    for (const RawSpring* s : by_group[g]) {
+      const double l0 = (mesh.nodes[s->j] - mesh.nodes[s->i]).norm();
+      m.spring_i.push_back(s->i);
+      m.spring_j.push_back(s->j);
+      m.rest_length.push_back(l0);
+      if (spec.mapping == Mapping::kStrain) {
+        m.deflection_scale.push_back(L / l0);
+        m.force_scale.push_back(s->volume_share / (l0 * L * L));
+      } else {
+        m.deflection_scale.push_back(1.0);
+        m.force_scale.push_back(1.0);
+      }
+    }
+    grp.end = m.num_springs();
+    m.groups.push_back(std::move(grp));
+  }
+
+  // Nodes that no element references have no mass: fix them so they never move.
+  for (int i = 0; i < nn; ++i)
+    if (!(mass[i] > 0)) m.fixed[i] = 7;
+  // Fixed selectors.
+  for (size_t k = 0; k < spec.fixed.size(); ++k) {
+    const auto& f = spec.fixed[k];
+    int count = 0;
+    if (f.axes < 1 || f.axes > 7) return "fixed selector " + std::to_string(k) + ": axes must be 1..7";
+    auto fix = [&](int i) { ++count; m.fixed[i] |= static_cast<std::uint8_t>(f.axes); };
+    switch (f.kind) {
+      case FixedSelector::Kind::kPlane: {
+        const Vec3 n = f.normal.normalized();
+        for (int i = 0; i < nn; ++i)
+          if (std::abs(n.dot(mesh.nodes[i]) - f.offset) <= f.tolerance) fix(i);
+        break;
+      }
+      case FixedSelector::Kind::kBox:
+        for (int i = 0; i < nn; ++i)
+          if ((mesh.nodes[i].array() >= f.box_min.array()).all() &&
+              (mesh.nodes[i].array() <= f.box_max.array()).all())
+            fix(i);
+        break;
+      case FixedSelector::Kind::kRegion: {
+        bool found = false;
+        for (const auto& r : mesh.regions) {
+          if (r.name != f.region) continue;
+          found = true;
+          for (int t : r.tetrahedra)
+            for (int i : mesh.tetrahedra[t]) fix(i);
+          for (int h : r.hexahedra)
+            for (int i : mesh.hexahedra[h]) fix(i);
+        }
+        if (!found) return "fixed selector " + std::to_string(k) + ": no region \"" + f.region + "\"";
+        break;
+      }
+      case FixedSelector::Kind::kNodes:
+        for (int i : f.nodes) {
+          if (i < 0 || i >= nn)
+            return "fixed selector " + std::to_string(k) + ": node " + std::to_string(i) +
+                   " out of range [0, " + std::to_string(nn) + ")";
+          fix(i);
+        }
+        break;
+    }
+    if (count == 0 && f.kind != FixedSelector::Kind::kNodes)
+      return "fixed selector " + std::to_string(k) + " matches no node";
+  }
+  m.inv_mass.resize(nn);
+  m.free_axes.resize(nn);
+  for (int i = 0; i < nn; ++i) {
+    m.inv_mass[i] = m.fixed[i] == 7 ? 0.0 : 1.0 / m.mass[i];
+    for (int a = 0; a < 3; ++a) m.free_axes[i][a] = (m.fixed[i] >> a) & 1 ? 0.0 : 1.0;
+  }
+
+  m.surface = boundary_triangles(mesh);
+  std::set<int> sn;
+  for (const auto& t : m.surface) sn.insert(t.begin(), t.end());
+  m.surface_nodes.assign(sn.begin(), sn.end());
+
+  // Contact penalties default to a fraction of the explicit stability limit of the lightest
+  // surface node, so that contact alone never destabilises a step.
+  double m_min = std::numeric_limits<double>::infinity();
+  for (int i : m.surface_nodes)
+    if (m.mass[i] > 0) m_min = std::min(m_min, m.mass[i]);
+  const double h = m.options.dt / m.options.substeps;
+  const double k_default = 0.2 * m_min / (h * h);
+  for (auto& p : m.probes) {
+    if (!(p.radius > 0)) return "probe radius must be > 0 m";
+    if (p.stiffness <= 0) p.stiffness = k_default;
+  }
+  for (auto& p : m.planes) {
+    if (!(p.normal.norm() > 0)) return "plane normal must be nonzero";
+    p.normal.normalize();
+    if (p.stiffness <= 0) p.stiffness = k_default;
+  }
+  *out = std::move(m);
+  return {};
+}
+
+State make_state(const Model& model) {
+  State s;
+  s.x = model.rest;
+  s.v.assign(model.rest.size(), Vec3::Zero());
+  s.maxwell.assign(model.rest_length.size(), 0.0);
+  s.probes.resize(model.probes.size());
+  for (size_t k = 0; k < model.probes.size(); ++k) s.probes[k].radius = model.probes[k].radius;
+  s.planes.resize(model.planes.size());
+  for (size_t k = 0; k < model.planes.size(); ++k) s.planes[k].offset = model.planes[k].offset;
+  return s;
+}
+
+}  // namespace conica

@@ -1,0 +1,160 @@
+// The immutable model of a mass-spring body and its copyable state, in the spirit of MuJoCo's
+// mjModel / mjData: a step is a function of (const Model&, State&), so snapshots, rollback and
+// replay are copies. All quantities SI: m, kg, s, N, Pa.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/conical.h"
+#include "core/mesh.h"
+
+namespace conica {
+
+using Mat3 = Eigen::Matrix3d;
+
+enum class LawKind : std::uint8_t { kHooke = 0, kConical = 1 };
+
+// How a card's spring is mapped onto a mesh spring of rest length l0.
+//  kRaw:    every mesh spring IS the card's spring: deflection = l0 - l, force = P(deflection).
+//  kStrain: the card describes a column of side L (its free length): stress P/L^2 at strain
+//           deflection/L. A mesh spring with rest length l0 and volume share V gets
+//           deflection = (L / l0)(l0 - l) and force = P * V / (l0 L^2), so the bulk response of a
+//           body depends on strain only and does not change when the mesh is refined.
+enum class Mapping : std::uint8_t { kRaw = 0, kStrain = 1 };
+
+// A spring card: the law of one spring group.
+struct SpringCard {
+  LawKind law = LawKind::kConical;
+  ConicalCard conical;           // kConical: G in Pa, lengths in m
+  double hooke_k = 0;            // kHooke: stiffness in N/m of the card's spring
+  double hooke_length = 0;       // kHooke: its free length L in m (used by kStrain)
+  double stiffness_cap = 1e3;    // kConical: tangent stiffness cap as a multiple of K0
+  double damping = 0;            // N s/m of the card's spring (dashpot parallel to it)
+  double maxwell_k = 0;          // N/m: Maxwell branch spring (0: no branch)
+  double maxwell_tau = 0;        // s: Maxwell branch relaxation time
+
+  double free_length() const { return law == LawKind::kConical ? conical.L0 : hooke_length; }
+  // Initial (linear-phase) stiffness in N/m of the card's spring.
+  double k0() const;
+};
+
+// Springs of one group are contiguous: [begin, end).
+struct SpringGroup {
+  std::string name;
+  SpringCard card;
+  std::optional<ConicalLaw> law;  // set for kConical, with the card's cap
+  int begin = 0, end = 0;
+  bool viscous = false;  // damping or Maxwell branch present
+};
+
+enum class Integrator : std::uint8_t {
+  kSymplecticEuler = 0,  // paper eq. (22)-(23): v += dt F/m; x += dt v
+  kExplicitEuler = 1,    // x += dt v; v += dt F/m (from the old state): fails first
+  kImplicitEuler = 2,    // backward Euler, Newton + matrix-free PCG, fixed budgets
+};
+const char* integrator_name(Integrator i);
+
+struct SolverOptions {
+  Integrator integrator = Integrator::kSymplecticEuler;
+  double dt = 1e-3;              // s, one tick
+  int substeps = 1;              // steps per tick (dt / substeps each)
+  int newton_iterations = 2;     // implicit: fixed budget per step
+  int cg_iterations = 40;        // implicit: fixed budget per Newton iteration
+  double cg_tolerance = 1e-8;    // implicit: relative residual to stop early
+  double mass_damping = 0;       // 1/s: Rayleigh mass-proportional damping on all nodes
+  Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
+  double min_length_fraction = 0.05;  // hard stop: no spring shorter than this x l0
+  double max_speed = 50;         // m/s: guard: faster nodes mean the step blew up
+};
+
+// A rigid spherical probe moved by a client.
+struct ProbeSpec {
+  double radius = 5e-3;          // m
+  double stiffness = 0;          // N/m per node penalty; 0: chosen from masses and dt
+};
+
+// A rigid half-space {x : n.x >= offset} that nodes cannot enter (compression plates).
+struct PlaneSpec {
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit, points into the free side
+  double offset = 0;             // m
+  double stiffness = 0;          // N/m per node penalty; 0: chosen from masses and dt
+};
+
+struct Model {
+  // Nodes (num_nodes).
+  std::vector<Vec3> rest;            // m
+  std::vector<double> mass;          // kg
+  std::vector<double> inv_mass;      // 1/kg, 0 for nodes fixed on all axes
+  std::vector<std::uint8_t> fixed;   // axis mask: bit 0 x, 1 y, 2 z; 7: the node never moves
+  std::vector<Vec3> free_axes;       // 1 on axes the node may move along, 0 on fixed ones
+
+  // Springs (num_springs), sorted by group.
+  std::vector<int> spring_i, spring_j;
+  std::vector<double> rest_length;       // l0, m
+  std::vector<double> force_scale;       // a: spring force = a P(delta)
+  std::vector<double> deflection_scale;  // b: delta = b (l0 - l)
+  std::vector<SpringGroup> groups;
+
+  // Geometry kept for contact, viewers and volume.
+  std::vector<std::array<int, 4>> tetrahedra;
+  std::vector<std::array<int, 8>> hexahedra;
+  std::vector<std::array<int, 3>> surface;  // outward triangles
+  std::vector<int> surface_nodes;
+
+  std::vector<ProbeSpec> probes;
+  std::vector<PlaneSpec> planes;
+  SolverOptions options;
+  Mapping mapping = Mapping::kStrain;
+
+  int num_nodes() const { return static_cast<int>(rest.size()); }
+  int num_springs() const { return static_cast<int>(rest_length.size()); }
+  double total_mass() const;
+};
+
+// Live pose of a probe and what the body does to it.
+struct ProbeState {
+  Vec3 center = Vec3::Zero();      // m
+  double radius = 0;               // m (0: the model's)
+  bool active = false;             // a probe far away or never placed does nothing
+  Vec3 force = Vec3::Zero();       // N, on the probe
+  Mat3 stiffness = Mat3::Zero();   // N/m, d force / d center with nodes held
+  int contacts = 0;                // nodes in contact
+};
+
+struct PlaneState {
+  double offset = 0;               // m, current offset (plates move)
+  Vec3 force = Vec3::Zero();       // N, on the plate
+  int contacts = 0;
+};
+
+// Counters the step reports through instead of logging.
+struct Counters {
+  std::uint64_t steps = 0;
+  std::uint64_t rollbacks = 0;      // guard trips rolled back to the last good state
+  std::uint64_t nan_events = 0;     // NaN / Inf found after a step
+  std::uint64_t speed_events = 0;   // a node faster than options.max_speed
+  std::uint64_t hard_stops = 0;     // springs projected back to their minimum length
+  std::uint64_t cg_iterations = 0;  // total, implicit only
+};
+
+struct State {
+  double time = 0;                   // s
+  std::uint64_t tick = 0;
+  std::vector<Vec3> x, v;            // (num_nodes) m, m/s
+  std::vector<double> maxwell;       // (num_springs) Maxwell dashpot deflection, card units
+  std::vector<ProbeState> probes;    // (model.probes.size())
+  std::vector<PlaneState> planes;    // (model.planes.size())
+  Counters counters;
+};
+
+// The state at rest: positions at rest, zero velocity, probes inactive.
+State make_state(const Model& model);
+
+}  // namespace conica

@@ -1,0 +1,392 @@
+#include "core/step.h"
+
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <cmath>
+
+namespace conica {
+namespace {
+
+double h_of(const Model& m) { return m.options.dt / m.options.substeps; }
+
+// Geometry and card loads of every spring; with_velocity adds dampers and Maxwell branches.
+void spring_loads(const Model& m, const State& s, Workspace& ws) {
+  const int ns = m.num_springs();
+  for (int k = 0; k < ns; ++k) {
+    const Vec3 u = s.x[m.spring_j[k]] - s.x[m.spring_i[k]];
+    const double l = u.norm();
+    ws.length[k] = l;
+    ws.dir[k] = l > 0 ? Vec3(u / l) : Vec3::UnitX();
+    ws.deflection[k] = m.deflection_scale[k] * (m.rest_length[k] - l);
+  }
+  for (const SpringGroup& g : m.groups) {
+    const int n = g.end - g.begin;
+    if (g.law) {
+      g.law->evaluate_batch(&ws.deflection[g.begin], &ws.load[g.begin], &ws.tangent[g.begin], n);
+    } else {
+      const double k0 = g.card.hooke_k;
+      for (int k = g.begin; k < g.end; ++k) {
+        ws.load[k] = k0 * ws.deflection[k];
+        ws.tangent[k] = k0;
+      }
+    }
+    if (!g.viscous) continue;
+    const double c = g.card.damping, km = g.card.maxwell_k;
+    for (int k = g.begin; k < g.end; ++k) {
+      const double ldot = ws.dir[k].dot(s.v[m.spring_j[k]] - s.v[m.spring_i[k]]);
+      const double ddot = -m.deflection_scale[k] * ldot;
+      ws.load[k] += c * ddot + km * (ws.deflection[k] - s.maxwell[k]);
+      ws.tangent[k] += km;
+    }
+  }
+}
+
+void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
+  const int nn = m.num_nodes();
+  const double h = h_of(m);
+  if (with_jacobian) std::fill(ws.contact_n.begin(), ws.contact_n.end(), Vec3::Zero());
+  for (size_t q = 0; q < m.probes.size(); ++q) {
+    ProbeState& p = s.probes[q];
+    p.force.setZero();
+    p.stiffness.setZero();
+    p.contacts = 0;
+    if (!p.active) continue;
+    const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
+    const double kc = m.probes[q].stiffness;
+    const double R2 = R * R;
+    for (int i = 0; i < nn; ++i) {
+      const Vec3 u = s.x[i] - p.center;
+      const double r2 = u.squaredNorm();
+      if (r2 >= R2) continue;
+      const double r = std::sqrt(r2);
+      // A node at the exact centre is pushed along +z: bounded, never NaN.
+      const Vec3 n = r > 1e-12 * R ? Vec3(u / r) : Vec3::UnitZ();
+      const Vec3 f = kc * (R - r) * n;
+      ws.force[i] += f;
+      p.force -= f;
+      const Mat3 nnT = n * n.transpose();
+      p.stiffness += kc * (-nnT + (r > 1e-12 * R ? (R - r) / r : 0.0) * (Mat3::Identity() - nnT));
+      ++p.contacts;
+      // Jacobian h^2 k n n^T stored as a scaled normal (two probes on one node: approximate).
+      if (with_jacobian && m.fixed[i] != 7) ws.contact_n[i] += std::sqrt(h * h * kc) * n;
+    }
+  }
+  for (size_t q = 0; q < m.planes.size(); ++q) {
+    PlaneState& pl = s.planes[q];
+    pl.force.setZero();
+    pl.contacts = 0;
+    const Vec3& n = m.planes[q].normal;
+    const double kp = m.planes[q].stiffness;
+    for (int i = 0; i < nn; ++i) {
+      const double depth = pl.offset - n.dot(s.x[i]);
+      if (depth <= 0) continue;
+      const Vec3 f = kp * depth * n;
+      ws.force[i] += f;
+      pl.force -= f;
+      ++pl.contacts;
+      // One normal per node for the Jacobian: a node touching a probe and a plane at once keeps
+      // the probe's, a rare case that only slows convergence.
+      if (with_jacobian && m.fixed[i] != 7 && ws.contact_n[i].squaredNorm() == 0)
+        ws.contact_n[i] = std::sqrt(h * h * kp) * n;
+    }
+  }
+}
+
+void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
+  const int nn = m.num_nodes();
+  spring_loads(m, s, ws);
+  const double mu = m.options.mass_damping;
+  for (int i = 0; i < nn; ++i) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
+  const int ns = m.num_springs();
+  for (int k = 0; k < ns; ++k) {
+    const Vec3 f = m.force_scale[k] * ws.load[k] * ws.dir[k];
+    ws.force[m.spring_i[k]] -= f;
+    ws.force[m.spring_j[k]] += f;
+  }
+  contact_forces(m, s, ws, with_jacobian);
+}
+
+void relax_maxwell(const Model& m, State& s, double h) {
+  for (const SpringGroup& g : m.groups) {
+    if (!(g.card.maxwell_k > 0)) continue;
+    const double decay = std::exp(-h / g.card.maxwell_tau);
+    for (int k = g.begin; k < g.end; ++k) {
+      const double d = m.deflection_scale[k] * (m.rest_length[k] -
+                                                (s.x[m.spring_j[k]] - s.x[m.spring_i[k]]).norm());
+      s.maxwell[k] = d + (s.maxwell[k] - d) * decay;
+    }
+  }
+}
+
+// Projects springs shorter than their minimum length back to it (mass-weighted) and removes the
+// approaching part of their relative velocity.
+void hard_stop(const Model& m, State& s, Workspace& ws) {
+  const int ns = m.num_springs();
+  for (int k = 0; k < ns; ++k) {
+    const int i = m.spring_i[k], j = m.spring_j[k];
+    Vec3 u = s.x[j] - s.x[i];
+    const double l = u.norm();
+    const double lmin = ws.min_length[k];
+    if (l >= lmin) continue;
+    const double wi = m.inv_mass[i], wj = m.inv_mass[j], w = wi + wj;
+    if (w <= 0) continue;
+    const Vec3 d = l > 1e-15 ? Vec3(u / l) : ws.dir[k];
+    const double gap = lmin - l;
+    s.x[i] -= ((wi / w) * gap * d).cwiseProduct(m.free_axes[i]);
+    s.x[j] += ((wj / w) * gap * d).cwiseProduct(m.free_axes[j]);
+    const double vrel = d.dot(s.v[j] - s.v[i]);
+    if (vrel < 0) {
+      s.v[i] += (wi / w) * vrel * d;
+      s.v[j] -= (wj / w) * vrel * d;
+    }
+    ++s.counters.hard_stops;
+  }
+}
+
+void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic) {
+  const double h = h_of(m);
+  forces_impl(m, s, ws, false);
+  const int nn = m.num_nodes();
+  for (int i = 0; i < nn; ++i) {
+    if (m.fixed[i] == 7) continue;
+    const Vec3 a = (ws.force[i] * m.inv_mass[i]).cwiseProduct(m.free_axes[i]);
+    if (symplectic) {
+      s.v[i] += h * a;   // eq. (22)
+      s.x[i] += h * s.v[i];  // eq. (23)
+    } else {
+      s.x[i] += h * s.v[i];
+      s.v[i] += h * a;
+    }
+  }
+}
+
+// y = A p with A = M (1 + h mu) + sum_s [alpha d d^T + beta (I - d d^T)] (+ contact) on free nodes.
+void apply_system(const Model& m, const Workspace& ws, const std::vector<Vec3>& p,
+                  std::vector<Vec3>& y) {
+  const int nn = m.num_nodes();
+  const double mfac = 1.0 + h_of(m) * m.options.mass_damping;
+  for (int i = 0; i < nn; ++i) {
+    y[i] = m.mass[i] * mfac * p[i];
+    const Vec3& cn = ws.contact_n[i];
+    y[i] += cn * cn.dot(p[i]);
+  }
+  const int ns = m.num_springs();
+  for (int k = 0; k < ns; ++k) {
+    const int i = m.spring_i[k], j = m.spring_j[k];
+    const Vec3 w = p[j] - p[i];
+    const Vec3& d = ws.dir[k];
+    const Vec3 t = ws.beta[k] * w + (ws.alpha[k] - ws.beta[k]) * d.dot(w) * d;
+    y[i] -= t;
+    y[j] += t;
+  }
+  for (int i = 0; i < nn; ++i) y[i] = y[i].cwiseProduct(m.free_axes[i]);
+}
+
+void integrate_implicit(const Model& m, State& s, Workspace& ws) {
+  const double h = h_of(m);
+  const int nn = m.num_nodes(), ns = m.num_springs();
+  for (int i = 0; i < nn; ++i) {
+    ws.x0[i] = s.x[i];
+    ws.v0[i] = s.v[i];
+    s.x[i] += h * s.v[i].cwiseProduct(m.free_axes[i]);  // predictor x1 = x0 + h v0
+  }
+
+  for (int it = 0; it < m.options.newton_iterations; ++it) {
+    for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.x0[i]) / h;
+    forces_impl(m, s, ws, true);
+    // rhs = -h^2 R = h^2 f - M (x1 - x0 - h v0)
+    for (int i = 0; i < nn; ++i)
+      ws.rhs[i] = (h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.x0[i] - h * ws.v0[i]))
+                      .cwiseProduct(m.free_axes[i]);
+    // System coefficients and the block-Jacobi preconditioner.
+    const double mfac = 1.0 + h * m.options.mass_damping;
+    for (int i = 0; i < nn; ++i) {
+      const Vec3& cn = ws.contact_n[i];
+      ws.diag_inv[i] = m.mass[i] * mfac * Mat3::Identity() + cn * cn.transpose();
+    }
+    for (const SpringGroup& g : m.groups) {
+      const double c = g.card.damping;
+      for (int k = g.begin; k < g.end; ++k) {
+        const double a = m.force_scale[k], b = m.deflection_scale[k];
+        const double kax = std::min(a * b * ws.tangent[k], 1e300);
+        const double tension = -a * ws.load[k];
+        ws.alpha[k] = h * h * kax + h * a * b * b * c;
+        ws.beta[k] = h * h * std::max(0.0, tension / std::max(ws.length[k], 1e-300));
+        const Vec3& d = ws.dir[k];
+        const Mat3 blk = ws.beta[k] * Mat3::Identity() + (ws.alpha[k] - ws.beta[k]) * d * d.transpose();
+        ws.diag_inv[m.spring_i[k]] += blk;
+        ws.diag_inv[m.spring_j[k]] += blk;
+      }
+    }
+    // Fixed axes: identity rows and columns, then projected out again.
+    for (int i = 0; i < nn; ++i) {
+      const Mat3 P = m.free_axes[i].asDiagonal();
+      const Mat3 D = P * ws.diag_inv[i] * P + (Mat3::Identity() - P);
+      ws.diag_inv[i] = P * D.inverse() * P;
+    }
+
+    // PCG from dx = 0.
+    double rz = 0, bnorm2 = 0;
+    for (int i = 0; i < nn; ++i) {
+      ws.dx[i].setZero();
+      ws.r[i] = ws.rhs[i];
+      ws.z[i] = ws.diag_inv[i] * ws.r[i];
+      ws.p[i] = ws.z[i];
+      rz += ws.r[i].dot(ws.z[i]);
+      bnorm2 += ws.r[i].squaredNorm();
+    }
+    const double tol2 = m.options.cg_tolerance * m.options.cg_tolerance * bnorm2;
+    for (int cg = 0; cg < m.options.cg_iterations && bnorm2 > 0; ++cg) {
+      apply_system(m, ws, ws.p, ws.ap);
+      double pap = 0;
+      for (int i = 0; i < nn; ++i) pap += ws.p[i].dot(ws.ap[i]);
+      if (!(pap > 0)) break;
+      const double alpha = rz / pap;
+      double rr = 0, rz_new = 0;
+      for (int i = 0; i < nn; ++i) {
+        ws.dx[i] += alpha * ws.p[i];
+        ws.r[i] -= alpha * ws.ap[i];
+        rr += ws.r[i].squaredNorm();
+      }
+      ++s.counters.cg_iterations;
+      if (rr <= tol2) break;
+      for (int i = 0; i < nn; ++i) {
+        ws.z[i] = ws.diag_inv[i] * ws.r[i];
+        rz_new += ws.r[i].dot(ws.z[i]);
+      }
+      const double beta = rz_new / rz;
+      rz = rz_new;
+      for (int i = 0; i < nn; ++i) ws.p[i] = ws.z[i] + beta * ws.p[i];
+    }
+    // Line search: never make a spring shorter than its hard-stop length.
+    double step_len = 1.0;
+    for (int tries = 0; tries < 12; ++tries) {
+      bool ok = true;
+      for (int k = 0; k < ns && ok; ++k) {
+        const int i = m.spring_i[k], j = m.spring_j[k];
+        const double l =
+            (s.x[j] + step_len * ws.dx[j] - s.x[i] - step_len * ws.dx[i]).norm();
+        ok = l >= ws.min_length[k] || l >= ws.length[k];
+      }
+      if (ok) break;
+      step_len *= 0.5;
+    }
+    for (int i = 0; i < nn; ++i) s.x[i] += step_len * ws.dx[i];
+  }
+  for (int i = 0; i < nn; ++i) s.v[i] = ((s.x[i] - ws.x0[i]) / h).cwiseProduct(m.free_axes[i]);
+}
+
+bool state_ok(const Model& m, State& s) {
+  const double vmax2 = m.options.max_speed * m.options.max_speed;
+  const int nn = m.num_nodes();
+  bool finite = true, slow = true;
+  for (int i = 0; i < nn; ++i) {
+    finite &= s.x[i].allFinite() && s.v[i].allFinite();
+    slow &= s.v[i].squaredNorm() <= vmax2;
+  }
+  if (!finite) ++s.counters.nan_events;
+  if (finite && !slow) ++s.counters.speed_events;
+  return finite && slow;
+}
+
+}  // namespace
+
+Workspace::Workspace(const Model& m) {
+  const size_t ns = m.num_springs(), nn = m.num_nodes();
+  deflection.assign(ns, 0);
+  load.assign(ns, 0);
+  tangent.assign(ns, 0);
+  length.assign(ns, 0);
+  dir.assign(ns, Vec3::Zero());
+  min_length.assign(ns, 0);
+  alpha.assign(ns, 0);
+  beta.assign(ns, 0);
+  force.assign(nn, Vec3::Zero());
+  diag_inv.assign(nn, Mat3::Zero());
+  contact_n.assign(nn, Vec3::Zero());
+  for (auto* v : {&x0, &v0, &rhs, &r, &z, &p, &ap, &dx, &good_x, &good_v}) v->assign(nn, Vec3::Zero());
+  good_maxwell.assign(ns, 0);
+  for (const SpringGroup& g : m.groups) {
+    for (int k = g.begin; k < g.end; ++k) {
+      const double l0 = m.rest_length[k];
+      double lmin = m.options.min_length_fraction * l0;
+      if (g.law) lmin = std::max(lmin, l0 - g.law->stroke() / m.deflection_scale[k]);
+      min_length[k] = lmin;
+    }
+  }
+}
+
+void compute_forces(const Model& model, State& state, Workspace& ws) {
+  forces_impl(model, state, ws, false);
+}
+
+double potential_energy(const Model& m, const State& s) {
+  double e = 0;
+  for (const SpringGroup& g : m.groups) {
+    for (int k = g.begin; k < g.end; ++k) {
+      const double l = (s.x[m.spring_j[k]] - s.x[m.spring_i[k]]).norm();
+      const double a = m.force_scale[k], b = m.deflection_scale[k];
+      const double d = b * (m.rest_length[k] - l);
+      const double law_e = g.law ? g.law->energy(d) : 0.5 * g.card.hooke_k * d * d;
+      const double dm = d - s.maxwell[k];
+      e += (a / b) * (law_e + 0.5 * g.card.maxwell_k * dm * dm);
+    }
+  }
+  for (size_t q = 0; q < m.probes.size(); ++q) {
+    const ProbeState& p = s.probes[q];
+    if (!p.active) continue;
+    const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
+    for (const Vec3& x : s.x) {
+      const double r = (x - p.center).norm();
+      if (r < R) e += 0.5 * m.probes[q].stiffness * (R - r) * (R - r);
+    }
+  }
+  for (size_t q = 0; q < m.planes.size(); ++q)
+    for (const Vec3& x : s.x) {
+      const double depth = s.planes[q].offset - m.planes[q].normal.dot(x);
+      if (depth > 0) e += 0.5 * m.planes[q].stiffness * depth * depth;
+    }
+  const int nn = m.num_nodes();
+  for (int i = 0; i < nn; ++i)
+    e -= m.mass[i] * m.options.gravity.cwiseProduct(m.free_axes[i]).dot(s.x[i] - m.rest[i]);
+  return e;
+}
+
+double kinetic_energy(const Model& m, const State& s) {
+  double e = 0;
+  for (int i = 0; i < m.num_nodes(); ++i) e += 0.5 * m.mass[i] * s.v[i].squaredNorm();
+  return e;
+}
+
+void set_probe(State& state, int probe, const Vec3& center, bool active) {
+  state.probes[probe].center = center;
+  state.probes[probe].active = active;
+}
+
+StepStatus step(const Model& m, State& s, Workspace& ws) {
+  std::copy(s.x.begin(), s.x.end(), ws.good_x.begin());
+  std::copy(s.v.begin(), s.v.end(), ws.good_v.begin());
+  std::copy(s.maxwell.begin(), s.maxwell.end(), ws.good_maxwell.begin());
+  const double h = h_of(m);
+  for (int sub = 0; sub < m.options.substeps; ++sub) {
+    switch (m.options.integrator) {
+      case Integrator::kSymplecticEuler: integrate_explicit(m, s, ws, true); break;
+      case Integrator::kExplicitEuler: integrate_explicit(m, s, ws, false); break;
+      case Integrator::kImplicitEuler: integrate_implicit(m, s, ws); break;
+    }
+    hard_stop(m, s, ws);
+    relax_maxwell(m, s, h);
+  }
+  ++s.counters.steps;
+  ++s.tick;
+  s.time += m.options.dt;
+  if (state_ok(m, s)) return StepStatus::kOk;
+  std::copy(ws.good_x.begin(), ws.good_x.end(), s.x.begin());
+  std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
+  std::copy(ws.good_maxwell.begin(), ws.good_maxwell.end(), s.maxwell.begin());
+  ++s.counters.rollbacks;
+  return StepStatus::kRolledBack;
+}
+
+}  // namespace conica

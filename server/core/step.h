@@ -1,0 +1,68 @@
+// Advancing a body in time. A tick runs in named stages:
+//   probe input (already in State) -> spring forces -> contact -> integrate -> hard stop -> guard
+// All scratch lives in a Workspace sized once per model: a step allocates nothing, does no I/O
+// and never throws.
+//
+// Spring s between nodes i and j, u = x_j - x_i, l = |u|, d = u / l:
+//   deflection  delta = b (l0 - l)                (compression positive; b, a from the mapping)
+//   card load   P = law(delta) + c delta_dot + k_m (delta - e_m)   (damper, Maxwell branch)
+//   forces      f_i = -a P d,  f_j = +a P d
+//   stiffness   K_s = k_ax d d^T + max(0, T / l)(I - d d^T),  k_ax = a b k_t,  T = -a P
+//               (the geometric term is clamped at 0 in compression: a definiteness fix so that
+//                the implicit system stays positive definite)
+// Maxwell dashpot: e_m relaxes to delta with time constant tau, updated exactly per step:
+//   e_m <- delta + (e_m - delta) exp(-h / tau).
+// Contact, per node inside a sphere of radius R around c (r = |x - c|, n = (x - c)/r):
+//   f_node = k_c (R - r) n,  probe force = -sum f_node,
+//   d(probe force)/dc = sum k_c [ -n n^T + (R - r)/r (I - n n^T) ]  (nodes held).
+// Rigid planes {n.x >= offset}: f_node = k_p (offset - n.x) n for nodes behind the plane.
+//
+// Solid height: the law's stiffness cap (ConicalLaw) keeps k_t finite, and a hard stop projects
+// any spring shorter than max(l0 - S/b, min_length_fraction l0) back to that length, removing
+// the approaching relative velocity. The implicit solver's line search never takes a Newton step
+// that makes a spring shorter than that length.
+#pragma once
+
+#include <vector>
+
+#include "core/model.h"
+
+namespace conica {
+
+struct Workspace {
+  explicit Workspace(const Model& model);
+
+  std::vector<double> deflection, load, tangent;  // (num_springs) card units
+  std::vector<double> length;                     // (num_springs) m
+  std::vector<Vec3> dir;                          // (num_springs) unit, i -> j
+  std::vector<double> min_length;                 // (num_springs) m, hard stop
+  std::vector<Vec3> force;                        // (num_nodes) N
+  // Implicit solver.
+  std::vector<double> alpha, beta;                // (num_springs) system coefficients
+  std::vector<Mat3> diag_inv;                     // (num_nodes) block-Jacobi preconditioner
+  std::vector<Vec3> contact_n;                    // (num_nodes) contact normal * sqrt(h^2 k)
+  std::vector<Vec3> x0, v0, rhs, r, z, p, ap, dx; // (num_nodes)
+  // Last good state for rollback.
+  std::vector<Vec3> good_x, good_v;
+  std::vector<double> good_maxwell;
+};
+
+// Forces on every node at (state.x, state.v): springs, dampers, Maxwell branches, gravity, mass
+// damping, contact. Fills ws.force and the probe/plane reactions in state.
+void compute_forces(const Model& model, State& state, Workspace& ws);
+
+// Stored energy (J): springs (law energy scaled by a / b), Maxwell branches, contact penalties.
+double potential_energy(const Model& model, const State& state);
+double kinetic_energy(const Model& model, const State& state);
+
+enum class StepStatus { kOk, kRolledBack };
+
+// One tick: options.substeps steps of dt / substeps with the model's integrator, then the guard.
+// On NaN / Inf or a node faster than max_speed the state returns to the last good one (velocities
+// zeroed), counters record it, and the tick still advances.
+StepStatus step(const Model& model, State& state, Workspace& ws);
+
+// Moves a probe (input stage). Inactive probes exert nothing.
+void set_probe(State& state, int probe, const Vec3& center, bool active = true);
+
+}  // namespace conica
