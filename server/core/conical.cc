@@ -222,7 +222,10 @@ double ConicalLaw::gap_from_s(double s) const {
     const double fp = sw + x * wp / (2.0 * sw);
     double next = x - f / fp;
     if (!(next >= lo && next <= hi)) next = 0.5 * (lo + hi);
-    if (next == x || hi - lo <= 1e-17 * (r2_ - r1_)) { x = next; break; }
+    if (next == x || hi - lo <= 4.0 * std::numeric_limits<double>::epsilon() * hi) {
+      x = next;
+      break;
+    }
     x = next;
   }
   return x;
