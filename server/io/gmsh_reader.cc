@@ -301,6 +301,7 @@ void read_v4_entities(LineReader& in, std::map<EntityKey, std::vector<int>>* phy
 // entityDim entityTag parametric numNodesInBlock, the block's tags, then its coordinates.
 void read_v4_nodes(LineReader& in, NodeTable* nodes) {
   Fields head(in.expect_line("node block header"));
+  const int header_line = in.line_number();
   const std::int64_t blocks =
       count_field(in, &head, "block count", bound(in, kMinNodeBytes));
   const std::int64_t total =
@@ -333,7 +334,7 @@ void read_v4_nodes(LineReader& in, NodeTable* nodes) {
     read += n;
   }
   if (read != total) {
-    in.fail("node blocks hold " + std::to_string(read) + " nodes, header announced " +
+    in.fail_at(header_line, "node blocks hold " + std::to_string(read) + " nodes, header announced " +
             std::to_string(total));
   }
   expect_end(in, "$EndNodes", std::to_string(blocks) + " node blocks");
@@ -345,6 +346,7 @@ void read_v4_elements(LineReader& in, const NodeTable& nodes,
                       const std::map<EntityKey, std::vector<int>>& physicals,
                       MeshAssembler* out) {
   Fields head(in.expect_line("element block header"));
+  const int header_line = in.line_number();
   const std::int64_t blocks =
       count_field(in, &head, "block count", bound(in, kMinElementBytes));
   const std::int64_t total =
@@ -377,7 +379,7 @@ void read_v4_elements(LineReader& in, const NodeTable& nodes,
     read += n;
   }
   if (read != total) {
-    in.fail("element blocks hold " + std::to_string(read) + " elements, header announced " +
+    in.fail_at(header_line, "element blocks hold " + std::to_string(read) + " elements, header announced " +
             std::to_string(total));
   }
   expect_end(in, "$EndElements", std::to_string(blocks) + " element blocks");

@@ -57,7 +57,7 @@ Result<MeshFile> parse_mesh(std::string_view text, const std::string& name) {
   detail::LineReader in(text, name);
   try {
     std::string_view first;
-    if (!in.next_nonblank(&first)) in.fail("empty file, expected a Gmsh or VTK mesh");
+    if (!in.next_nonblank(&first)) in.fail_at(1, "empty file, expected a Gmsh or VTK mesh");
     const std::string_view head = detail::Fields(first).rest();
     if (head.rfind("$NOD", 0) == 0 && detail::Fields(head).rest().size() == 4) {
       return detail::read_gmsh1(in);

@@ -1,0 +1,78 @@
+// conica-lab mesh as a user runs it: the built binary on a good and a damaged file.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+namespace {
+
+using ::testing::HasSubstr;
+
+struct LabRun {
+  int status = -1;     // exit status
+  std::string output;  // stdout and stderr
+};
+
+LabRun run_lab(const std::string& args) {
+  LabRun r;
+  const std::string cmd = std::string("'") + CONICA_LAB_BIN + "' " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  std::size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+  const int w = pclose(p);
+  r.status = WIFEXITED(w) ? WEXITSTATUS(w) : -1;
+  return r;
+}
+
+TEST(LabMesh, Liver2Summary) {
+  const LabRun r = run_lab(std::string("mesh '") + CONICA_SHARED_DIR "/data/meshes/liver2.msh'");
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("\nnodes: 507\n"));
+  EXPECT_THAT(r.output, HasSubstr("\ntetrahedra: 1493\n"));
+  EXPECT_THAT(r.output, HasSubstr("\nhexahedra: 0\n"));
+  // V - E + F - T = 1 for the solid liver gives E = 507 + 3416 - 1493 - 1.
+  EXPECT_THAT(r.output, HasSubstr("\nsprings: 2429\n"));
+  EXPECT_THAT(r.output, HasSubstr("\nbbox: ["));
+  EXPECT_THAT(r.output, HasSubstr("region_2 (id 2): 1493 tetrahedra"));
+  EXPECT_THAT(r.output, HasSubstr("repair:\n  clean\n"));
+}
+
+TEST(LabMesh, HexSpringsCountAllPairsOfTheCube) {
+  const std::string path =
+      ::testing::TempDir() + "conica_lab_hex_" + std::to_string(getpid()) + ".vtk";
+  std::ofstream(path) << "# vtk DataFile Version 3.0\nhex\nASCII\nDATASET UNSTRUCTURED_GRID\n"
+                         "POINTS 8 float\n0 0 0 1 0 0 1 1 0 0 1 0 0 0 1 1 0 1 1 1 1 0 1 1\n"
+                         "CELLS 1 9\n8 0 1 2 3 4 5 6 7\nCELL_TYPES 1\n12\n";
+  const LabRun r = run_lab("mesh '" + path + "'");
+  std::remove(path.c_str());
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("\nhexahedra: 1\n"));
+  EXPECT_THAT(r.output, HasSubstr("\nsprings: 28\n"));
+  EXPECT_THAT(r.output, HasSubstr("\nbbox: [0, 0, 0] .. [1, 1, 1]\n"));
+}
+
+TEST(LabMesh, BadFileExitsNonZeroWithFileAndLine) {
+  const std::string path =
+      ::testing::TempDir() + "conica_lab_bad_" + std::to_string(getpid()) + ".msh";
+  std::ofstream(path) << "$NOD\n2\n1 0 0 0\n2 1 0 0\n$ENDNOD\n$ELM\n1\n"
+                         "37 4 1 1 4 1 2 9001 2\n$ENDELM\n";
+  const LabRun r = run_lab("mesh '" + path + "'");
+  std::remove(path.c_str());
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.output, HasSubstr(path + ":8: element 37 references unknown node 9001"));
+}
+
+TEST(LabMesh, MissingFileExitsNonZero) {
+  const LabRun r = run_lab("mesh /nonexistent/liver.msh");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.output, HasSubstr("/nonexistent/liver.msh"));
+}
+
+}  // namespace
