@@ -74,6 +74,16 @@ Mesh make_box_lattice(const Vec3& size, const std::array<int, 3>& cells) {
   return m;
 }
 
+Mesh make_cylinder_lattice(double radius, double height, int cells_across, int cells_high) {
+  Mesh m = make_box_lattice(Vec3(2, 2, height), {cells_across, cells_across, cells_high});
+  for (Vec3& n : m.nodes) {
+    const double u = n.x() - 1, v = n.y() - 1;
+    n.x() = radius * u * std::sqrt(1 - v * v / 2);
+    n.y() = radius * v * std::sqrt(1 - u * u / 2);
+  }
+  return m;
+}
+
 double tet_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
   return (b - a).cross(c - a).dot(d - a) / 6.0;
 }

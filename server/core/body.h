@@ -54,6 +54,11 @@ struct BodySpec {
 // Nodes: (cells+1) product. The paper's 320-node cube is cells {7, 7, 4}.
 Mesh make_box_lattice(const Vec3& size, const std::array<int, 3>& cells);
 
+// A cylinder along z (radius m, height m), base centred on the origin: a square lattice of
+// cells_across x cells_across cells mapped onto the disc (x = u sqrt(1 - v^2/2),
+// y = v sqrt(1 - u^2/2) for u, v in [-1, 1]), cells_high layers. Hexahedra, no jagged boundary.
+Mesh make_cylinder_lattice(double radius, double height, int cells_across, int cells_high);
+
 // Signed volumes (m^3): a tetrahedron's is positive for positive orientation; a hexahedron's is
 // the sum of its decomposition into six tetrahedra.
 double tet_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);

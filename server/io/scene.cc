@@ -1,0 +1,292 @@
+#include "io/scene.h"
+
+#include <google/protobuf/io/tokenizer.h>
+#include <google/protobuf/text_format.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "conica/v1/scene.pb.h"
+#include "io/mesh_reader.h"
+#include "io/mesh_repair.h"
+
+namespace conica::io {
+namespace {
+
+namespace pb = google::protobuf;
+
+// Collects the text parser's first error with its position.
+class FirstError : public pb::io::ErrorCollector {
+ public:
+  void AddError(int line, pb::io::ColumnNumber column, const std::string& message) override {
+    if (message_.empty()) {
+      std::ostringstream os;
+      os << line + 1 << ":" << column + 1 << ": " << message;
+      message_ = os.str();
+    }
+  }
+  void AddWarning(int, pb::io::ColumnNumber, const std::string&) override {}
+  const std::string& message() const { return message_; }
+
+ private:
+  std::string message_;
+};
+
+Vec3 vec(const v1::Vector3& v) { return Vec3(v.x(), v.y(), v.z()); }
+
+std::string num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+// "file:line:col: " for the index-th value of a top-level field, or "file: " if unknown.
+struct Locator {
+  const std::string& name;
+  const pb::TextFormat::ParseInfoTree& tree;
+  std::string at(const char* field, int index = -1) const {
+    const auto* f = v1::Scene::descriptor()->FindFieldByName(field);
+    const auto loc = tree.GetLocation(f, index);
+    if (loc.line < 0) return name + ": ";
+    return name + ":" + std::to_string(loc.line + 1) + ":" + std::to_string(loc.column + 1) + ": ";
+  }
+};
+
+std::string convert_card(const v1::SpringCard& c, SpringCard* out) {
+  SpringCard card;
+  if (c.has_conical()) {
+    const auto& k = c.conical();
+    card.law = LawKind::kConical;
+    card.conical = ConicalCard{k.g(), k.d(), k.d1(), k.d2(), k.l0(), k.n_a()};
+    const std::string e = validate(card.conical);
+    if (!e.empty()) return e;
+  } else if (c.has_hooke()) {
+    card.law = LawKind::kHooke;
+    card.hooke_k = c.hooke().k();
+    card.hooke_length = c.hooke().length();
+  } else {
+    return "card needs a law: conical { ... } or hooke { ... }";
+  }
+  if (c.has_stiffness_cap()) card.stiffness_cap = c.stiffness_cap();
+  card.damping = c.damping();
+  card.maxwell_k = c.maxwell_k();
+  card.maxwell_tau = c.maxwell_tau();
+  *out = card;
+  return {};
+}
+
+}  // namespace
+
+Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
+                              const std::string& base_dir) {
+  v1::Scene scene;
+  pb::TextFormat::Parser parser;
+  FirstError errors;
+  pb::TextFormat::ParseInfoTree tree;
+  parser.RecordErrorsTo(&errors);
+  parser.WriteLocationsTo(&tree);
+  if (!parser.ParseFromString(std::string(text), &scene)) {
+    return Error{name + ":" + (errors.message().empty() ? " not a scene" : errors.message())};
+  }
+  const Locator loc{name, tree};
+  SceneFile out;
+  out.name = scene.name();
+  out.description = scene.description();
+  out.path = name;
+  BodySpec& b = out.spec;
+
+  // Geometry.
+  if (scene.has_lattice()) {
+    const auto& l = scene.lattice();
+    if (l.cells_size() != 3) return Error{loc.at("lattice") + "lattice needs 3 cells values"};
+    for (int k = 0; k < 3; ++k)
+      if (l.cells(k) < 1 || l.cells(k) > 400)
+        return Error{loc.at("lattice") + "lattice cells must be in 1..400 (got " +
+                     std::to_string(l.cells(k)) + ")"};
+    const Vec3 size = vec(l.size());
+    if (!(size.minCoeff() > 0) || !size.allFinite())
+      return Error{loc.at("lattice") + "lattice size must be > 0 m on every axis"};
+    b.mesh = make_box_lattice(size, {l.cells(0), l.cells(1), l.cells(2)});
+    for (auto& n : b.mesh.nodes) n += vec(l.origin());
+  } else if (scene.has_cylinder()) {
+    const auto& c = scene.cylinder();
+    if (!(c.radius() > 0) || !(c.height() > 0) || !std::isfinite(c.radius() + c.height()))
+      return Error{loc.at("cylinder") + "cylinder radius and height must be > 0 m"};
+    if (c.cells_across() < 1 || c.cells_across() > 400 || c.cells_high() < 1 || c.cells_high() > 400)
+      return Error{loc.at("cylinder") + "cylinder cells_across and cells_high must be in 1..400"};
+    b.mesh = make_cylinder_lattice(c.radius(), c.height(), c.cells_across(), c.cells_high());
+    for (auto& n : b.mesh.nodes) n += vec(c.origin());
+  } else if (scene.has_mesh()) {
+    const auto& m = scene.mesh();
+    if (m.path().empty()) return Error{loc.at("mesh") + "mesh path is empty"};
+    std::filesystem::path p(m.path());
+    if (p.is_relative()) p = std::filesystem::path(base_dir) / p;
+    out.mesh_path = p.lexically_normal().string();
+    auto file = read_mesh(out.mesh_path);
+    if (!file) return Error{loc.at("mesh") + "cannot load mesh: " + file.error()};
+    b.mesh = std::move(file.value().mesh);
+    const double scale = m.has_scale() ? m.scale() : 1.0;
+    if (!(scale > 0) || !std::isfinite(scale))
+      return Error{loc.at("mesh") + "mesh scale must be > 0 (got " + num(scale) + ")"};
+    for (auto& n : b.mesh.nodes) n = n * scale + vec(m.translate());
+    if (!m.has_repair() || m.repair()) repair(b.mesh);
+  } else {
+    return Error{name + ": a scene needs geometry: lattice, cylinder or mesh { ... }"};
+  }
+
+  b.density = scene.density();
+  if (!(b.density > 0) || !std::isfinite(b.density))
+    return Error{loc.at("density") + "density must be > 0 kg/m^3 (got " + num(b.density) + ")"};
+  b.mapping = scene.mapping() == v1::RAW ? Mapping::kRaw : Mapping::kStrain;
+
+  if (scene.group_size() == 0) return Error{name + ": a scene needs at least one group { ... }"};
+  for (int g = 0; g < scene.group_size(); ++g) {
+    const auto& gs = scene.group(g);
+    SpringGroupSpec spec;
+    spec.name = gs.name().empty() ? "group" + std::to_string(g) : gs.name();
+    const std::string where = loc.at("group", g) + "group " + std::to_string(g) + " (\"" +
+                              spec.name + "\"): ";
+    const std::string e = convert_card(gs.card(), &spec.card);
+    if (!e.empty()) return Error{where + e};
+    if (gs.families_size() > 0) {
+      spec.families = 0;
+      for (int f : gs.families()) {
+        if (f == v1::EDGE) spec.families |= kEdge;
+        else if (f == v1::FACE_DIAGONAL) spec.families |= kFaceDiagonal;
+        else if (f == v1::BODY_DIAGONAL) spec.families |= kBodyDiagonal;
+        else return Error{where + "unknown spring family"};
+      }
+    }
+    spec.regions.assign(gs.regions().begin(), gs.regions().end());
+    spec.axis = vec(gs.axis());
+    if (gs.has_max_angle_deg()) spec.max_angle_deg = gs.max_angle_deg();
+    b.groups.push_back(spec);
+  }
+
+  // Plane tolerance defaults to a millionth of the body's size.
+  Vec3 lo = b.mesh.nodes.empty() ? Vec3::Zero() : b.mesh.nodes[0], hi = lo;
+  for (const auto& n : b.mesh.nodes) {
+    lo = lo.cwiseMin(n);
+    hi = hi.cwiseMax(n);
+  }
+  const double size = (hi - lo).norm();
+  for (int k = 0; k < scene.fixed_size(); ++k) {
+    const auto& f = scene.fixed(k);
+    FixedSelector sel;
+    const std::string where = loc.at("fixed", k) + "fixed " + std::to_string(k) + ": ";
+    if (f.has_plane()) {
+      sel.kind = FixedSelector::Kind::kPlane;
+      sel.normal = vec(f.plane().normal());
+      if (!(sel.normal.norm() > 0)) return Error{where + "plane normal must be nonzero"};
+      sel.normal.normalize();
+      sel.offset = f.plane().offset();
+      sel.tolerance = f.plane().has_tolerance() ? f.plane().tolerance() : 1e-6 * size;
+    } else if (f.has_box()) {
+      sel.kind = FixedSelector::Kind::kBox;
+      sel.box_min = vec(f.box().min());
+      sel.box_max = vec(f.box().max());
+    } else if (f.selector_case() == v1::Fixed::kRegion) {
+      sel.kind = FixedSelector::Kind::kRegion;
+      sel.region = f.region();
+    } else if (f.has_nodes()) {
+      sel.kind = FixedSelector::Kind::kNodes;
+      sel.nodes.assign(f.nodes().nodes().begin(), f.nodes().nodes().end());
+    } else {
+      return Error{where + "needs a selector: plane, box, region or nodes"};
+    }
+    if (f.axes_size() > 0) {
+      sel.axes = 0;
+      for (int a : f.axes()) {
+        if (a < v1::X || a > v1::Z) return Error{where + "unknown axis"};
+        sel.axes |= 1 << (a - v1::X);
+      }
+    }
+    b.fixed.push_back(sel);
+  }
+  for (int k = 0; k < scene.probe_size(); ++k) {
+    const auto& p = scene.probe(k);
+    if (!(p.radius() > 0) || !std::isfinite(p.radius()))
+      return Error{loc.at("probe", k) + "probe " + std::to_string(k) + ": radius must be > 0 m"};
+    if (p.stiffness() < 0)
+      return Error{loc.at("probe", k) + "probe " + std::to_string(k) + ": stiffness must be >= 0"};
+    b.probes.push_back(ProbeSpec{p.radius(), p.stiffness()});
+  }
+  for (int k = 0; k < scene.plate_size(); ++k) {
+    const auto& p = scene.plate(k);
+    PlaneSpec pl;
+    pl.normal = vec(p.normal());
+    if (!(pl.normal.norm() > 0))
+      return Error{loc.at("plate", k) + "plate " + std::to_string(k) + ": normal must be nonzero"};
+    pl.normal.normalize();
+    pl.offset = p.offset();
+    pl.stiffness = p.stiffness();
+    b.planes.push_back(pl);
+  }
+  const auto& s = scene.solver();
+  SolverOptions& o = b.options;
+  switch (s.integrator()) {
+    case v1::EXPLICIT_EULER: o.integrator = Integrator::kExplicitEuler; break;
+    case v1::IMPLICIT_EULER: o.integrator = Integrator::kImplicitEuler; break;
+    default: o.integrator = Integrator::kSymplecticEuler; break;
+  }
+  const std::string swhere = loc.at("solver") + "solver: ";
+  const double rate = s.has_rate_hz() ? s.rate_hz() : 1000.0;
+  if (!(rate > 0) || rate > 1e6) return Error{swhere + "rate_hz must be in (0, 1e6]"};
+  o.dt = 1.0 / rate;
+  if (s.has_substeps()) o.substeps = s.substeps();
+  if (s.has_newton_iterations()) o.newton_iterations = s.newton_iterations();
+  if (s.has_cg_iterations()) o.cg_iterations = s.cg_iterations();
+  if (s.has_cg_tolerance()) o.cg_tolerance = s.cg_tolerance();
+  if (s.has_min_length_fraction()) o.min_length_fraction = s.min_length_fraction();
+  if (s.has_max_speed()) o.max_speed = s.max_speed();
+  o.mass_damping = s.mass_damping();
+  o.gravity = vec(s.gravity());
+  if (o.substeps < 1 || o.substeps > 1000) return Error{swhere + "substeps must be in 1..1000"};
+  if (o.newton_iterations < 1 || o.cg_iterations < 1)
+    return Error{swhere + "newton_iterations and cg_iterations must be >= 1"};
+  if (o.mass_damping < 0) return Error{swhere + "mass_damping must be >= 0"};
+
+  // Build once so that every semantic error surfaces at load, pointing at its group if any.
+  Model model;
+  const std::string e = build_model(b, &model);
+  if (!e.empty()) {
+    for (int g = 0; g < scene.group_size(); ++g)
+      if (e.find("\"" + b.groups[g].name + "\"") != std::string::npos)
+        return Error{loc.at("group", g) + e};
+    for (int k = 0; k < scene.fixed_size(); ++k)
+      if (e.rfind("fixed selector " + std::to_string(k), 0) == 0) return Error{loc.at("fixed", k) + e};
+    return Error{name + ": " + e};
+  }
+  return out;
+}
+
+Result<SceneFile> read_scene(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Error{path + ": cannot open scene file"};
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (text.str().size() > (16u << 20)) return Error{path + ": scene file larger than 16 MiB"};
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  return parse_scene(text.str(), path, dir.empty() ? "." : dir);
+}
+
+std::string load_scene(const std::string& path, BodySpec* spec) {
+  auto r = read_scene(path);
+  if (!r) return r.error();
+  *spec = std::move(r.value().spec);
+  return {};
+}
+
+Result<Model> load_model(const std::string& path) {
+  BodySpec spec;
+  const std::string e = load_scene(path, &spec);
+  if (!e.empty()) return Error{e};
+  Model m;
+  const std::string b = build_model(spec, &m);
+  if (!b.empty()) return Error{path + ": " + b};
+  return m;
+}
+
+}  // namespace conica::io

@@ -1,0 +1,37 @@
+// Scene files: protobuf text format against proto/conica/v1/scene.proto -> BodySpec -> Model.
+// Every error names the file, the line and column where it can, and what is wrong:
+//   cube.pbtxt:7:3: Message type "conica.v1.Scene" has no field named "densty".
+//   cube.pbtxt:5:1: density must be > 0 kg/m^3 (got -3)
+//   cube.pbtxt:9:1: group 1 ("red"): d must be > 0 (got 0)
+#pragma once
+
+#include <string>
+#include <string_view>
+
+#include "core/body.h"
+#include "core/model.h"
+#include "io/result.h"
+
+namespace conica::io {
+
+struct SceneFile {
+  std::string name;
+  std::string description;
+  std::string path;          // as given
+  std::string mesh_path;     // resolved mesh file, empty for lattices
+  BodySpec spec;             // geometry in metres, cards, selectors, solver options
+};
+
+// Reads, parses and validates a scene; the mesh path is resolved against the scene's folder.
+// Validation includes building the model once, so a scene that loads also builds.
+Result<SceneFile> read_scene(const std::string& path);
+Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
+                              const std::string& base_dir);
+
+// Convenience: the spec of a scene file, or the error message (empty on success).
+std::string load_scene(const std::string& path, BodySpec* spec);
+
+// Reads a scene and builds its model.
+Result<Model> load_model(const std::string& path);
+
+}  // namespace conica::io
