@@ -12,9 +12,9 @@ namespace conica::io::detail {
 namespace {
 
 // Smallest number of bytes one record can take; bounds counts by what the file can hold.
-constexpr std::int64_t kMinNodeBytes = 8;      // "1 0 0 0\n"
-constexpr std::int64_t kMinElementBytes = 6;   // "1 15 1\n" (4.1: "1 1\n" + header share)
-constexpr std::int64_t kMinLineBytes = 2;      // any non-empty line
+constexpr std::int64_t kMinNodeBytes = 8;     // "1 0 0 0\n"
+constexpr std::int64_t kMinElementBytes = 6;  // "1 15 1\n" (4.1: "1 1\n" + header share)
+constexpr std::int64_t kMinLineBytes = 2;     // any non-empty line
 
 std::int64_t bound(const LineReader& in, std::int64_t bytes_per_record) {
   return static_cast<std::int64_t>(in.remaining_bytes()) / bytes_per_record + 1;
@@ -28,26 +28,46 @@ struct ElementType {
 // Gmsh element types (same numbers in all versions).
 ElementType element_type(std::int64_t type) {
   switch (type) {
-    case 1: return {2, "line"};
-    case 2: return {3, "triangle"};
-    case 3: return {4, "quadrangle"};
-    case 4: return {4, "tetrahedron"};
-    case 5: return {8, "hexahedron"};
-    case 6: return {6, "prism"};
-    case 7: return {5, "pyramid"};
-    case 8: return {3, "line3"};
-    case 9: return {6, "triangle6"};
-    case 10: return {9, "quadrangle9"};
-    case 11: return {10, "tetrahedron10"};
-    case 12: return {27, "hexahedron27"};
-    case 13: return {18, "prism18"};
-    case 14: return {14, "pyramid14"};
-    case 15: return {1, "point"};
-    case 16: return {8, "quadrangle8"};
-    case 17: return {20, "hexahedron20"};
-    case 18: return {15, "prism15"};
-    case 19: return {13, "pyramid13"};
-    default: return {};
+    case 1:
+      return {2, "line"};
+    case 2:
+      return {3, "triangle"};
+    case 3:
+      return {4, "quadrangle"};
+    case 4:
+      return {4, "tetrahedron"};
+    case 5:
+      return {8, "hexahedron"};
+    case 6:
+      return {6, "prism"};
+    case 7:
+      return {5, "pyramid"};
+    case 8:
+      return {3, "line3"};
+    case 9:
+      return {6, "triangle6"};
+    case 10:
+      return {9, "quadrangle9"};
+    case 11:
+      return {10, "tetrahedron10"};
+    case 12:
+      return {27, "hexahedron27"};
+    case 13:
+      return {18, "prism18"};
+    case 14:
+      return {14, "pyramid14"};
+    case 15:
+      return {1, "point"};
+    case 16:
+      return {8, "quadrangle8"};
+    case 17:
+      return {20, "hexahedron20"};
+    case 18:
+      return {15, "prism15"};
+    case 19:
+      return {13, "pyramid13"};
+    default:
+      return {};
   }
 }
 
@@ -65,8 +85,7 @@ bool is_section_start(std::string_view line) {
 void expect_end(LineReader& in, std::string_view end, std::string_view after) {
   std::string_view line;
   if (!in.next_nonblank(&line)) {
-    in.fail("unexpected end of file, missing " + std::string(end) + " after " +
-            std::string(after));
+    in.fail("unexpected end of file, missing " + std::string(end) + " after " + std::string(after));
   }
   if (Fields(line).rest() != end) {
     in.fail("expected " + std::string(end) + " after " + std::string(after) + ", found '" +
@@ -78,8 +97,8 @@ void expect_end(LineReader& in, std::string_view end, std::string_view after) {
 std::string_view record_line(LineReader& in, std::string_view section, std::string_view what,
                              std::int64_t i, std::int64_t count) {
   std::string_view line;
-  const std::string progress = std::to_string(i) + " of " + std::to_string(count) + " " +
-                               std::string(what);
+  const std::string progress =
+      std::to_string(i) + " of " + std::to_string(count) + " " + std::string(what);
   if (!in.next_nonblank(&line)) {
     in.fail("unexpected end of file in " + std::string(section) + " after " + progress);
   }
@@ -134,8 +153,8 @@ class NodeTable {
 };
 
 // Files one element given its Gmsh type and node ids; validates every node reference.
-void add_element(const LineReader& in, const NodeTable& nodes, MeshAssembler* out,
-                 std::int64_t id, std::int64_t type, const std::vector<std::int64_t>& node_ids,
+void add_element(const LineReader& in, const NodeTable& nodes, MeshAssembler* out, std::int64_t id,
+                 std::int64_t type, const std::vector<std::int64_t>& node_ids,
                  const std::vector<int>& tags) {
   const ElementType t = element_type(type);
   if (t.num_nodes > 0 && static_cast<int>(node_ids.size()) != t.num_nodes) {
@@ -146,12 +165,17 @@ void add_element(const LineReader& in, const NodeTable& nodes, MeshAssembler* ou
   std::vector<int> idx(node_ids.size());
   for (std::size_t i = 0; i < node_ids.size(); ++i) idx[i] = nodes.index(in, id, node_ids[i]);
   switch (type) {
-    case 2: out->add_triangle({idx[0], idx[1], idx[2]}); break;
-    case 4: out->add_tetrahedron({idx[0], idx[1], idx[2], idx[3]}, tags); break;
+    case 2:
+      out->add_triangle({idx[0], idx[1], idx[2]});
+      break;
+    case 4:
+      out->add_tetrahedron({idx[0], idx[1], idx[2], idx[3]}, tags);
+      break;
     case 5:
       out->add_hexahedron({idx[0], idx[1], idx[2], idx[3], idx[4], idx[5], idx[6], idx[7]}, tags);
       break;
-    default: out->skip(type_name(type));
+    default:
+      out->skip(type_name(type));
   }
 }
 
@@ -162,9 +186,8 @@ int tag_value(const LineReader& in, std::int64_t v, std::string_view what) {
 
 // "$PhysicalNames": dim tag "name". Keeps the names of 3-D groups (regions are volumes).
 void read_physical_names(LineReader& in, std::map<int, std::string>* names) {
-  const std::int64_t n =
-      to_count(in, Fields(in.expect_line("physical name count")).rest(), "physical name count",
-               bound(in, kMinNodeBytes));
+  const std::int64_t n = to_count(in, Fields(in.expect_line("physical name count")).rest(),
+                                  "physical name count", bound(in, kMinNodeBytes));
   for (std::int64_t i = 0; i < n; ++i) {
     Fields f(record_line(in, "$PhysicalNames", "names", i, n));
     const std::int64_t dim = int_field(in, &f, "physical dimension");
@@ -205,9 +228,8 @@ void read_v1_nodes(LineReader& in, NodeTable* nodes) {
 
 // elm-number elm-type reg-phys reg-elem number-of-nodes node-list
 void read_v1_elements(LineReader& in, const NodeTable& nodes, MeshAssembler* out) {
-  const std::int64_t n =
-      to_count(in, Fields(in.expect_line("element count")).rest(), "element count",
-               bound(in, kMinElementBytes));
+  const std::int64_t n = to_count(in, Fields(in.expect_line("element count")).rest(),
+                                  "element count", bound(in, kMinElementBytes));
   std::vector<std::int64_t> ids;
   for (std::int64_t i = 0; i < n; ++i) {
     Fields f(record_line(in, "$ELM", "elements", i, n));
@@ -242,9 +264,8 @@ void read_v2_nodes(LineReader& in, NodeTable* nodes) {
 
 // elm-number elm-type number-of-tags <tags> node-number-list; tag 0 is the physical group.
 void read_v2_elements(LineReader& in, const NodeTable& nodes, MeshAssembler* out) {
-  const std::int64_t n =
-      to_count(in, Fields(in.expect_line("element count")).rest(), "element count",
-               bound(in, kMinElementBytes));
+  const std::int64_t n = to_count(in, Fields(in.expect_line("element count")).rest(),
+                                  "element count", bound(in, kMinElementBytes));
   std::vector<std::int64_t> ids;
   for (std::int64_t i = 0; i < n; ++i) {
     Fields f(record_line(in, "$Elements", "elements", i, n));
@@ -302,10 +323,8 @@ void read_v4_entities(LineReader& in, std::map<EntityKey, std::vector<int>>* phy
 void read_v4_nodes(LineReader& in, NodeTable* nodes) {
   Fields head(in.expect_line("node block header"));
   const int header_line = in.line_number();
-  const std::int64_t blocks =
-      count_field(in, &head, "block count", bound(in, kMinNodeBytes));
-  const std::int64_t total =
-      count_field(in, &head, "node count", bound(in, kMinNodeBytes));
+  const std::int64_t blocks = count_field(in, &head, "block count", bound(in, kMinNodeBytes));
+  const std::int64_t total = count_field(in, &head, "node count", bound(in, kMinNodeBytes));
   std::int64_t read = 0;
   std::vector<std::int64_t> ids;
   for (std::int64_t b = 0; b < blocks; ++b) {
@@ -316,8 +335,8 @@ void read_v4_nodes(LineReader& in, NodeTable* nodes) {
     if (parametric != 0 && parametric != 1) in.fail("parametric flag must be 0 or 1");
     std::string_view token;
     if (!f.next(&token)) in.fail("missing number of nodes in block");
-    const std::int64_t n = to_count(in, token, "number of nodes in block",
-                                    bound(in, kMinNodeBytes));
+    const std::int64_t n =
+        to_count(in, token, "number of nodes in block", bound(in, kMinNodeBytes));
     if (read + n > total) {
       in.fail("node blocks hold more than the " + std::to_string(total) + " nodes announced");
     }
@@ -334,8 +353,8 @@ void read_v4_nodes(LineReader& in, NodeTable* nodes) {
     read += n;
   }
   if (read != total) {
-    in.fail_at(header_line, "node blocks hold " + std::to_string(read) + " nodes, header announced " +
-            std::to_string(total));
+    in.fail_at(header_line, "node blocks hold " + std::to_string(read) +
+                                " nodes, header announced " + std::to_string(total));
   }
   expect_end(in, "$EndNodes", std::to_string(blocks) + " node blocks");
 }
@@ -343,14 +362,11 @@ void read_v4_nodes(LineReader& in, NodeTable* nodes) {
 // numEntityBlocks numElements minElementTag maxElementTag, then per block
 // entityDim entityTag elementType numElementsInBlock and one line per element: tag nodes...
 void read_v4_elements(LineReader& in, const NodeTable& nodes,
-                      const std::map<EntityKey, std::vector<int>>& physicals,
-                      MeshAssembler* out) {
+                      const std::map<EntityKey, std::vector<int>>& physicals, MeshAssembler* out) {
   Fields head(in.expect_line("element block header"));
   const int header_line = in.line_number();
-  const std::int64_t blocks =
-      count_field(in, &head, "block count", bound(in, kMinElementBytes));
-  const std::int64_t total =
-      count_field(in, &head, "element count", bound(in, kMinLineBytes));
+  const std::int64_t blocks = count_field(in, &head, "block count", bound(in, kMinElementBytes));
+  const std::int64_t total = count_field(in, &head, "element count", bound(in, kMinLineBytes));
   std::int64_t read = 0;
   std::vector<std::int64_t> ids;
   const std::vector<int> no_tags;
@@ -361,11 +377,10 @@ void read_v4_elements(LineReader& in, const NodeTable& nodes,
     const std::int64_t type = int_field(in, &f, "element type");
     std::string_view token;
     if (!f.next(&token)) in.fail("missing number of elements in block");
-    const std::int64_t n = to_count(in, token, "number of elements in block",
-                                    bound(in, kMinLineBytes));
+    const std::int64_t n =
+        to_count(in, token, "number of elements in block", bound(in, kMinLineBytes));
     if (read + n > total) {
-      in.fail("element blocks hold more than the " + std::to_string(total) +
-              " elements announced");
+      in.fail("element blocks hold more than the " + std::to_string(total) + " elements announced");
     }
     const auto phys = physicals.find({dim, tag});
     const std::vector<int>& tags = phys != physicals.end() ? phys->second : no_tags;
@@ -379,8 +394,8 @@ void read_v4_elements(LineReader& in, const NodeTable& nodes,
     read += n;
   }
   if (read != total) {
-    in.fail_at(header_line, "element blocks hold " + std::to_string(read) + " elements, header announced " +
-            std::to_string(total));
+    in.fail_at(header_line, "element blocks hold " + std::to_string(read) +
+                                " elements, header announced " + std::to_string(total));
   }
   expect_end(in, "$EndElements", std::to_string(blocks) + " element blocks");
 }
@@ -414,8 +429,9 @@ MeshFile read_gmsh(LineReader& in) {
     in.fail("unsupported Gmsh version " + std::string(version) +
             " (supported: 1, 2.2 and 4.1, ASCII)");
   }
-  if (file_type != 0) in.fail("binary Gmsh files are not supported (file-type " +
-                              std::to_string(file_type) + "); save as ASCII");
+  if (file_type != 0)
+    in.fail("binary Gmsh files are not supported (file-type " + std::to_string(file_type) +
+            "); save as ASCII");
   expect_end(in, "$EndMeshFormat", "the mesh format");
 
   MeshAssembler out;
@@ -427,8 +443,9 @@ MeshFile read_gmsh(LineReader& in) {
   std::string_view line;
   while (in.next_nonblank(&line)) {
     const std::string_view s = Fields(line).rest();
-    if (s.front() != '$') in.fail("expected a section ($Nodes, $Elements...), found '" +
-                                  std::string(s.substr(0, 40)) + "'");
+    if (s.front() != '$')
+      in.fail("expected a section ($Nodes, $Elements...), found '" + std::string(s.substr(0, 40)) +
+              "'");
     if (s == "$PhysicalNames") {
       read_physical_names(in, &names);
     } else if (s == "$Entities" && v4) {

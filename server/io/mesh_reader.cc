@@ -18,8 +18,7 @@ Region& MeshAssembler::region(int tag) {
   return r;
 }
 
-void MeshAssembler::add_tetrahedron(const std::array<int, 4>& nodes,
-                                    const std::vector<int>& tags) {
+void MeshAssembler::add_tetrahedron(const std::array<int, 4>& nodes, const std::vector<int>& tags) {
   const int index = static_cast<int>(file_.mesh.tetrahedra.size());
   file_.mesh.tetrahedra.push_back(nodes);
   for (const int tag : tags) {
@@ -27,8 +26,7 @@ void MeshAssembler::add_tetrahedron(const std::array<int, 4>& nodes,
   }
 }
 
-void MeshAssembler::add_hexahedron(const std::array<int, 8>& nodes,
-                                   const std::vector<int>& tags) {
+void MeshAssembler::add_hexahedron(const std::array<int, 8>& nodes, const std::vector<int>& tags) {
   const int index = static_cast<int>(file_.mesh.hexahedra.size());
   file_.mesh.hexahedra.push_back(nodes);
   for (const int tag : tags) {
@@ -59,7 +57,9 @@ Result<MeshFile> parse_mesh(std::string_view text, const std::string& name) {
     std::string_view first;
     if (!in.next_nonblank(&first)) in.fail_at(1, "empty file, expected a Gmsh or VTK mesh");
     const std::string_view head = detail::Fields(first).rest();
-    if (head.rfind("$NOD", 0) == 0 && detail::Fields(head).rest().size() == 4) {
+    std::string_view keyword;
+    detail::Fields(head).next(&keyword);
+    if (keyword == "$NOD") {
       return detail::read_gmsh1(in);
     }
     if (head.rfind("$MeshFormat", 0) == 0) return detail::read_gmsh(in);
@@ -67,8 +67,8 @@ Result<MeshFile> parse_mesh(std::string_view text, const std::string& name) {
     if (text.find('\0') != std::string_view::npos) {
       in.fail("binary file of unknown format, expected a Gmsh or VTK mesh");
     }
-    in.fail("unrecognised mesh format: first line is '" +
-            std::string(head.substr(0, 60)) + "', expected $NOD, $MeshFormat or # vtk DataFile");
+    in.fail("unrecognised mesh format: first line is '" + std::string(head.substr(0, 60)) +
+            "', expected $NOD, $MeshFormat or # vtk DataFile");
   } catch (const detail::ParseError& e) {
     return Error{e.message};
   } catch (const std::bad_alloc&) {

@@ -1,14 +1,13 @@
 #include "io/mesh_repair.h"
 
+#include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <numeric>
 #include <tuple>
 #include <unordered_map>
-
-#include <Eigen/Geometry>
-#include <Eigen/LU>
 
 namespace conica::io {
 
@@ -143,9 +142,9 @@ void remap_list(std::vector<int>* list, const std::vector<int>& remap) {
 
 bool MeshReport::clean() const {
   return duplicate_nodes == 0 && bad_index_elements == 0 && repeated_node_elements == 0 &&
-         zero_volume_tetrahedra == 0 && zero_volume_hexahedra == 0 &&
-         inverted_tetrahedra == 0 && inverted_hexahedra == 0 && distorted_hexahedra == 0 &&
-         degenerate_triangles == 0 && unreferenced_nodes == 0;
+         zero_volume_tetrahedra == 0 && zero_volume_hexahedra == 0 && inverted_tetrahedra == 0 &&
+         inverted_hexahedra == 0 && distorted_hexahedra == 0 && degenerate_triangles == 0 &&
+         unreferenced_nodes == 0;
 }
 
 std::string to_string(const MeshReport& r) {

@@ -18,16 +18,16 @@ struct RepairOptions {
 
 // What repair() found, by kind; each count is also what it fixed (or dropped).
 struct MeshReport {
-  int duplicate_nodes = 0;        // merged into an earlier node at the same position
-  int bad_index_elements = 0;     // referencing a node index out of range: dropped
-  int repeated_node_elements = 0; // naming one node twice (after merging): dropped
-  int zero_volume_tetrahedra = 0; // flat: dropped
-  int zero_volume_hexahedra = 0;  // flat: dropped
-  int inverted_tetrahedra = 0;    // negative volume: flipped to positive orientation
-  int inverted_hexahedra = 0;     // negative volume: top and bottom faces swapped
-  int distorted_hexahedra = 0;    // corner Jacobians of mixed sign: kept, reported only
-  int degenerate_triangles = 0;   // repeating a node or out of range: dropped
-  int unreferenced_nodes = 0;     // used by no element: dropped, indices remapped
+  int duplicate_nodes = 0;         // merged into an earlier node at the same position
+  int bad_index_elements = 0;      // referencing a node index out of range: dropped
+  int repeated_node_elements = 0;  // naming one node twice (after merging): dropped
+  int zero_volume_tetrahedra = 0;  // flat: dropped
+  int zero_volume_hexahedra = 0;   // flat: dropped
+  int inverted_tetrahedra = 0;     // negative volume: flipped to positive orientation
+  int inverted_hexahedra = 0;      // negative volume: top and bottom faces swapped
+  int distorted_hexahedra = 0;     // corner Jacobians of mixed sign: kept, reported only
+  int degenerate_triangles = 0;    // repeating a node or out of range: dropped
+  int unreferenced_nodes = 0;      // used by no element: dropped, indices remapped
   bool clean() const;
 };
 

@@ -15,23 +15,40 @@ constexpr std::int64_t kMinValueBytes = 2;  // "0 "
 
 std::string cell_type_name(std::int64_t type) {
   switch (type) {
-    case 1: return "vertex";
-    case 2: return "polyvertex";
-    case 3: return "line";
-    case 4: return "polyline";
-    case 5: return "triangle";
-    case 6: return "triangle strip";
-    case 7: return "polygon";
-    case 8: return "pixel";
-    case 9: return "quad";
-    case 10: return "tetra";
-    case 11: return "voxel";
-    case 12: return "hexahedron";
-    case 13: return "wedge";
-    case 14: return "pyramid";
-    case 24: return "quadratic tetra";
-    case 25: return "quadratic hexahedron";
-    default: return "vtk cell type " + std::to_string(type);
+    case 1:
+      return "vertex";
+    case 2:
+      return "polyvertex";
+    case 3:
+      return "line";
+    case 4:
+      return "polyline";
+    case 5:
+      return "triangle";
+    case 6:
+      return "triangle strip";
+    case 7:
+      return "polygon";
+    case 8:
+      return "pixel";
+    case 9:
+      return "quad";
+    case 10:
+      return "tetra";
+    case 11:
+      return "voxel";
+    case 12:
+      return "hexahedron";
+    case 13:
+      return "wedge";
+    case 14:
+      return "pyramid";
+    case 24:
+      return "quadratic tetra";
+    case 25:
+      return "quadratic hexahedron";
+    default:
+      return "vtk cell type " + std::to_string(type);
   }
 }
 
@@ -70,8 +87,8 @@ class Tokens {
 struct Cells {
   std::vector<std::int64_t> offsets{0};  // (num_cells + 1)
   std::vector<std::int64_t> connectivity;
-  std::vector<int> lines;                // (num_cells) line of each cell, for messages
-  std::vector<std::int64_t> types;       // (num_cells)
+  std::vector<int> lines;           // (num_cells) line of each cell, for messages
+  std::vector<std::int64_t> types;  // (num_cells)
   int types_line = 0;
   std::int64_t count() const { return static_cast<std::int64_t>(offsets.size()) - 1; }
 };
@@ -85,8 +102,7 @@ void read_cells(Tokens& t, std::int64_t num_points, Cells* cells) {
   auto check_index = [&](std::int64_t cell, std::int64_t index) {
     if (index < 0 || index >= num_points) {
       in.fail("cell " + std::to_string(cell) + " references unknown point " +
-              std::to_string(index) + " (the file has " + std::to_string(num_points) +
-              " points)");
+              std::to_string(index) + " (the file has " + std::to_string(num_points) + " points)");
     }
   };
   std::string_view token = t.expect("cell data");
@@ -123,7 +139,7 @@ void read_cells(Tokens& t, std::int64_t num_points, Cells* cells) {
   for (std::int64_t c = 0; c < n; ++c) {
     const std::int64_t k = t.integer("number of cell points");
     cells->lines.push_back(in.line_number());
-    if (k < 1 || used + 1 + k > size) {
+    if (k < 1 || k > size - used - 1) {
       in.fail("cell " + std::to_string(c) + " with " + std::to_string(k) +
               " points overflows the cell list size " + std::to_string(size));
     }
@@ -161,7 +177,8 @@ void read_attribute(Tokens& t, std::string_view keyword, std::int64_t n, bool ce
       if (components < 1 || components > 4) in.fail("scalars need 1 to 4 components");
       token = t.expect("LOOKUP_TABLE");
     }
-    if (token != "LOOKUP_TABLE") in.fail("expected LOOKUP_TABLE, found '" + std::string(token) + "'");
+    if (token != "LOOKUP_TABLE")
+      in.fail("expected LOOKUP_TABLE, found '" + std::string(token) + "'");
     t.expect("lookup table name");
     const bool keep = cell_data && components == 1 && !*have_regions;
     std::vector<std::int64_t> values;
@@ -322,8 +339,8 @@ MeshFile read_vtk(LineReader& in, std::string_view header) {
                                      ") has " + std::to_string(k) + " points, expected " +
                                      std::to_string(expected));
     }
-    const std::vector<int> tags =
-        have_regions ? std::vector<int>{static_cast<int>(regions[c])} : no_tags;
+    const bool tagged = have_regions && static_cast<std::int64_t>(regions.size()) == cells.count();
+    const std::vector<int> tags = tagged ? std::vector<int>{static_cast<int>(regions[c])} : no_tags;
     auto at = [&](int i) { return static_cast<int>(p[i]); };
     if (type == 10) {
       out.add_tetrahedron({at(0), at(1), at(2), at(3)}, tags);

@@ -3,13 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <set>
-
-#include <Eigen/Geometry>
 
 #include "io/mesh_reader.h"
 
@@ -188,8 +187,8 @@ TEST(MeshRepair, MergesDuplicateNodesWithinRelativeTolerance) {
   // Two tets sharing face (1, 2, 3); the second lists its own copies of the face nodes, one
   // of them 1e-13 away (bbox diagonal sqrt 3): duplicates. Node 8 is 1e-3 away: distinct.
   Mesh m;
-  m.nodes = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1},
-             {1, 1, 1}, {1, 0, 0}, {0, 1 + 1e-13, 0}, {0, 0, 1}, {0, 0, 1.001}};
+  m.nodes = {{0, 0, 0}, {1, 0, 0},         {0, 1, 0}, {0, 0, 1},    {1, 1, 1},
+             {1, 0, 0}, {0, 1 + 1e-13, 0}, {0, 0, 1}, {0, 0, 1.001}};
   m.tetrahedra = {{0, 1, 2, 3}, {4, 7, 6, 5}};
   m.triangles = {{5, 6, 8}};
   const MeshReport r = repair(m);
@@ -245,7 +244,7 @@ TEST(MeshRepair, NearlyFlatSliverIsKeptAboveTolerance) {
 TEST(MeshRepair, DropsUnreferencedNodesAndRemapsIndices) {
   Mesh m = one_tet();
   m.nodes.insert(m.nodes.begin(), Vec3(5, 5, 5));  // unused, at index 0
-  m.nodes.push_back(Vec3(7, 7, 7));               // unused, at the end
+  m.nodes.push_back(Vec3(7, 7, 7));                // unused, at the end
   m.tetrahedra = {{1, 2, 3, 4}};
   const MeshReport r = repair(m);
   EXPECT_EQ(r.unreferenced_nodes, 2);
@@ -259,8 +258,8 @@ TEST(MeshRepair, HexahedraInvertedFlatAndDistorted) {
   m.nodes = cube_nodes();
   const std::vector<Vec3> flat = {{3, 0, 0}, {4, 0, 0}, {4, 1, 0}, {3, 1, 0}};
   m.nodes.insert(m.nodes.end(), flat.begin(), flat.end());  // 8..11, all at z = 0
-  m.hexahedra = {{4, 5, 6, 7, 0, 1, 2, 3},       // inverted
-                 {8, 9, 10, 11, 8, 9, 10, 11}};  // repeats nodes
+  m.hexahedra = {{4, 5, 6, 7, 0, 1, 2, 3},                  // inverted
+                 {8, 9, 10, 11, 8, 9, 10, 11}};             // repeats nodes
   m.hexahedra.push_back({8, 9, 10, 11, 0, 0, 0, 0});
   Mesh flat_hex;
   flat_hex.nodes = cube_nodes();
