@@ -1,0 +1,101 @@
+// The 1 kHz haptic server: a fixed-rate loop that steps the body and three ZeroMQ sockets.
+//
+//   probe   ROUTER  ClientMessage{probe} -> ServerMessage{force | error}, answered as the update
+//                   arrives (between ticks) with the contact force at the new pose against the
+//                   current node positions; the next tick integrates with it
+//   state   PUB     [topic "F"][ServerMessage{state}] every tick (probes, stats), and
+//                   [topic "S"][ServerMessage{state}] with node positions at positions_hz
+//   control ROUTER  ClientMessage{control} -> ServerMessage{control_reply | error}
+//
+// One tick: wait (ppoll on the probe and control sockets' ZMQ_FD until the absolute deadline,
+// answering probes as they come) -> input (drain what is left) -> step -> publish. Deadlines are
+// absolute (CLOCK_MONOTONIC); an overrun skips the missed deadlines and counts them, dt stays
+// fixed. Bad messages are answered with ServerMessage{error}, counted by kind and logged once per
+// kind per 10 s; they never change the rate or the state.
+//
+// The Server owns its sockets; the zmq::context_t is the caller's (inproc endpoints need the
+// client to share it). start() binds and starts the loop thread; stop() joins it and closes the
+// sockets; a Server can be started again.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include <zmq.hpp>
+
+#include "core/body.h"
+#include "core/model.h"
+#include "net/codec.h"
+
+namespace conica::net {
+
+struct ServerOptions {
+  std::string probe_endpoint = "tcp://127.0.0.1:5555";
+  std::string state_endpoint = "tcp://127.0.0.1:5556";
+  std::string control_endpoint = "tcp://127.0.0.1:5557";
+  double rate_hz = 1000;          // loop rate; the model's dt should be 1 / rate_hz
+  double positions_hz = 60;       // "S" frames with node positions (0: never)
+  double log_period_s = 10;       // loop statistics at info level (0: never)
+  int max_message_bytes = 64 * 1024;  // larger client messages: TOO_LARGE (transport drops them)
+  int pub_sndhwm = 16;            // messages queued per subscriber before PUB drops
+  double box_margin = 0.25;       // m: probe positions must lie within the body box grown by this
+  bool realtime = false;          // try SCHED_FIFO and mlockall (logged at info when refused)
+  int window = 2048;              // ticks in the rolling statistics window
+  bool refuse_slow_scene = true;  // refuse a scene whose median step cost exceeds the period
+  // LOAD_SCENE: path -> spec; returns an error message (empty on success). Unset: refused.
+  std::function<std::string(const std::string&, BodySpec*)> scene_loader;
+};
+
+// Resolved endpoints (with the ports the OS picked for "tcp://host:*").
+struct Endpoints {
+  std::string probe, state, control;
+};
+
+class Server {
+ public:
+  Server(zmq::context_t& context, ServerOptions options);
+  ~Server();
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // Builds the model, measures the step cost on a copy (50 steps) and makes it the scene. Before
+  // start() only; LOAD_SCENE does the same while running. Returns an error message or "".
+  std::string load(const BodySpec& spec);
+
+  // Binds the sockets and starts the loop thread. Returns an error message or "".
+  std::string start();
+  // Stops the loop and closes the sockets. Idempotent; safe with clients still connected.
+  void stop();
+  bool running() const { return thread_.joinable(); }
+
+  Endpoints endpoints() const;
+  // The latest statistics snapshot (refreshed a few times per second by the loop).
+  LoopStatsData stats() const;
+  // Median and maximum step cost measured at the last load, us.
+  double measured_step_us() const { return measured_step_us_; }
+  // The current model (valid until the next load; do not call while LOAD_SCENE may run).
+  const Model& model() const;
+
+  struct Loop;  // the loop thread's state (sockets, messages, scratch)
+
+ private:
+  std::string prepare(const BodySpec& spec, std::unique_ptr<Model>* model, double* step_us) const;
+
+  zmq::context_t& context_;
+  ServerOptions options_;
+  std::unique_ptr<Model> model_;
+  double measured_step_us_ = 0;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  mutable std::mutex mutex_;  // guards endpoints_ and stats_
+  Endpoints endpoints_;
+  LoopStatsData stats_;
+  friend struct Loop;
+};
+
+}  // namespace conica::net
