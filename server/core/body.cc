@@ -346,6 +346,13 @@ std::string build_model(const BodySpec& spec, Model* out) {
   }
 
   m.surface = boundary_triangles(mesh);
+  m.normal.assign(nn, Vec3::Zero());
+  for (const auto& t : m.surface) {
+    const Vec3 an = (mesh.nodes[t[1]] - mesh.nodes[t[0]]).cross(mesh.nodes[t[2]] - mesh.nodes[t[0]]);
+    for (int k : t) m.normal[k] += an;  // area-weighted
+  }
+  for (Vec3& n : m.normal)
+    if (n.norm() > 0) n.normalize();
   std::set<int> sn;
   for (const auto& t : m.surface) sn.insert(t.begin(), t.end());
   m.surface_nodes.assign(sn.begin(), sn.end());

@@ -107,6 +107,8 @@ struct Model {
   std::vector<std::array<int, 8>> hexahedra;
   std::vector<std::array<int, 3>> surface;  // outward triangles
   std::vector<int> surface_nodes;
+  std::vector<Vec3> normal;                 // (num_nodes) outward unit normal at rest on the
+                                            // surface, zero inside
 
   std::vector<ProbeSpec> probes;
   std::vector<PlaneSpec> planes;

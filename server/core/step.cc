@@ -59,17 +59,36 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian)
       const Vec3 u = s.x[i] - p.center;
       const double r2 = u.squaredNorm();
       if (r2 >= R2) continue;
-      const double r = std::sqrt(r2);
-      // A node at the exact centre is pushed along +z: bounded, never NaN.
-      const Vec3 n = r > 1e-12 * R ? Vec3(u / r) : Vec3::UnitZ();
-      const Vec3 f = kc * (R - r) * n;
+      const Vec3& nrm = m.normal[i];
+      Vec3 f;
+      Mat3 dfdc;  // d(force on probe)/dc
+      if (nrm.squaredNorm() > 0) {
+        // Surface node: it leaves the sphere inward, along -n, by s = a + sqrt(a^2 - r^2 + R^2)
+        // with a = u.n, so the probe is always pushed out of the body, even when it has slipped
+        // between surface nodes.
+        const double a = u.dot(nrm);
+        const double q = std::max(a * a - r2 + R2, 1e-12 * R2);
+        const double sq = std::sqrt(q);
+        const double depth = a + sq;
+        f = -kc * depth * nrm;  // on the node
+        const Vec3 dsdu = nrm + (a * nrm - u) / sq;
+        dfdc = -kc * nrm * dsdu.transpose();
+        if (with_jacobian && m.fixed[i] != 7) ws.contact_n[i] += std::sqrt(h * h * kc) * nrm;
+      } else {
+        // Interior node (a probe that went deep): pushed radially out of the sphere. A node at
+        // the exact centre is pushed along +z: bounded, never NaN.
+        const double r = std::sqrt(r2);
+        const Vec3 n = r > 1e-12 * R ? Vec3(u / r) : Vec3::UnitZ();
+        f = kc * (R - r) * n;
+        const Mat3 nnT = n * n.transpose();
+        dfdc = kc * (-nnT + (r > 1e-12 * R ? (R - r) / r : 0.0) * (Mat3::Identity() - nnT));
+        // Jacobian h^2 k n n^T stored as a scaled normal (two probes on one node: approximate).
+        if (with_jacobian && m.fixed[i] != 7) ws.contact_n[i] += std::sqrt(h * h * kc) * n;
+      }
       ws.force[i] += f;
       p.force -= f;
-      const Mat3 nnT = n * n.transpose();
-      p.stiffness += kc * (-nnT + (r > 1e-12 * R ? (R - r) / r : 0.0) * (Mat3::Identity() - nnT));
+      p.stiffness += dfdc;
       ++p.contacts;
-      // Jacobian h^2 k n n^T stored as a scaled normal (two probes on one node: approximate).
-      if (with_jacobian && m.fixed[i] != 7) ws.contact_n[i] += std::sqrt(h * h * kc) * n;
     }
   }
   for (size_t q = 0; q < m.planes.size(); ++q) {
@@ -337,9 +356,18 @@ double potential_energy(const Model& m, const State& s) {
     const ProbeState& p = s.probes[q];
     if (!p.active) continue;
     const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
-    for (const Vec3& x : s.x) {
-      const double r = (x - p.center).norm();
-      if (r < R) e += 0.5 * m.probes[q].stiffness * (R - r) * (R - r);
+    for (int i = 0; i < m.num_nodes(); ++i) {
+      const Vec3 u = s.x[i] - p.center;
+      const double r2 = u.squaredNorm();
+      if (r2 >= R * R) continue;
+      double depth;
+      if (m.normal[i].squaredNorm() > 0) {
+        const double a = u.dot(m.normal[i]);
+        depth = a + std::sqrt(std::max(a * a - r2 + R * R, 0.0));
+      } else {
+        depth = R - std::sqrt(r2);
+      }
+      e += 0.5 * m.probes[q].stiffness * depth * depth;
     }
   }
   for (size_t q = 0; q < m.planes.size(); ++q)

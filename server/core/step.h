@@ -12,9 +12,14 @@
 //                the implicit system stays positive definite)
 // Maxwell dashpot: e_m relaxes to delta with time constant tau, updated exactly per step:
 //   e_m <- delta + (e_m - delta) exp(-h / tau).
-// Contact, per node inside a sphere of radius R around c (r = |x - c|, n = (x - c)/r):
-//   f_node = k_c (R - r) n,  probe force = -sum f_node,
-//   d(probe force)/dc = sum k_c [ -n n^T + (R - r)/r (I - n n^T) ]  (nodes held).
+// Contact, per node inside a sphere of radius R around c (u = x - c, r = |u|):
+//   surface node with outward normal n: it leaves the sphere inward along -n by
+//     s = a + sqrt(a^2 - r^2 + R^2), a = u.n;  f_node = -k_c s n
+//     (so the probe is pushed out of the body even after slipping between surface nodes)
+//   interior node: f_node = k_c (R - r) u / r (radially out of the sphere)
+//   probe force = -sum f_node, and its 3x3 stiffness d(probe force)/dc (nodes held) exactly.
+// The surface potential's force is not its gradient (the normal direction is fixed per node): a
+// penalty of this form is not conservative in tangential motion, which the energy checks allow.
 // Rigid planes {n.x >= offset}: f_node = k_p (offset - n.x) n for nodes behind the plane.
 //
 // Solid height: the law's stiffness cap (ConicalLaw) keeps k_t finite, and a hard stop projects

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   conica::lab::Runner run;
   conica::lab::register_law(app, &run);
   conica::lab::register_mesh(app, &run);
+  conica::lab::register_run(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
