@@ -1,0 +1,250 @@
+#include "common/trajectory.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+namespace conica::client {
+
+namespace {
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream ss(line);
+  std::string part;
+  while (std::getline(ss, part, ',')) out.push_back(part);
+  if (!line.empty() && line.back() == ',') out.emplace_back();
+  return out;
+}
+
+std::string trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t\r");
+  if (b == std::string::npos) return {};
+  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
+}
+
+}  // namespace
+
+bool parse_trajectory(std::istream& in, const std::string& name, std::vector<TrajectoryRow>* rows,
+                      std::string* error) {
+  static const char* kFields[] = {"t", "probe", "x", "y", "z"};
+  rows->clear();
+  std::map<int, double> last_t;
+  std::string line;
+  int n = 0;
+  bool seen_data = false;
+  auto fail = [&](const std::string& what) {
+    *error = name + ":" + std::to_string(n) + ": " + what;
+    return false;
+  };
+  while (std::getline(in, line)) {
+    ++n;
+    const std::string s = trim(line);
+    if (s.empty() || s[0] == '#') continue;
+    if (!seen_data && s[0] == 't') {  // header
+      seen_data = true;
+      continue;
+    }
+    seen_data = true;
+    const auto f = split(s);
+    if (f.size() != 5)
+      return fail("expected 5 fields (t,probe,x,y,z), got " + std::to_string(f.size()));
+    TrajectoryRow r;
+    r.line = n;
+    double v[5];
+    for (int i = 0; i < 5; ++i) {
+      const auto d = parse_double(f[i]);
+      if (!d) return fail("field " + std::string(kFields[i]) + ": \"" + trim(f[i]) +
+                          "\" is not a finite number");
+      v[i] = *d;
+    }
+    if (v[0] < 0) return fail("time must be >= 0 s, got " + trim(f[0]));
+    if (v[1] < 0 || v[1] != std::floor(v[1]) || v[1] > 1e6)
+      return fail("probe must be a non-negative integer, got " + trim(f[1]));
+    r.t = v[0];
+    r.probe = static_cast<int>(v[1]);
+    r.position = Vec3(v[2], v[3], v[4]);
+    if (r.position.cwiseAbs().maxCoeff() > 100)
+      return fail("position more than 100 m from the origin (the file must be in metres)");
+    auto it = last_t.find(r.probe);
+    if (it != last_t.end() && r.t < it->second) {
+      std::ostringstream m;
+      m << "time goes backwards for probe " << r.probe << " (" << r.t << " s after "
+        << it->second << " s)";
+      return fail(m.str());
+    }
+    last_t[r.probe] = r.t;
+    rows->push_back(r);
+  }
+  if (rows->empty()) {
+    *error = name + ": no samples (expected lines t,probe,x,y,z)";
+    return false;
+  }
+  return true;
+}
+
+bool load_trajectory(const std::string& path, std::vector<TrajectoryRow>* rows,
+                     std::string* error) {
+  std::ifstream f(path);
+  if (!f) {
+    *error = path + ": cannot open";
+    return false;
+  }
+  return parse_trajectory(f, path, rows, error);
+}
+
+namespace {
+
+// A script given as signed depth d(t) and lateral offset s(t) along sweep_dir.
+class DepthScript : public ProbeSource {
+ public:
+  DepthScript(const ScriptParams& p, std::string kind) : p_(p), kind_(std::move(kind)) {
+    const double a = p.approach, d = p.depth, v = p.speed;
+    t_in_ = (a + d) / v;
+    if (kind_ == "press") {
+      end_ = t_in_ + p.hold;
+    } else if (kind_ == "ramp") {
+      end_ = 2 * t_in_;
+    } else if (kind_ == "sine") {
+      t_in_ = a / v;
+      end_ = t_in_ + p.cycles / p.freq;
+    } else {  // sweep
+      end_ = t_in_ + p.length / v + t_in_;
+    }
+  }
+
+  bool next(const Feedback*, Sample* out) override {
+    const double t = k_ * p_.dt;
+    if (t > end_ + 1e-12) return false;
+    ++k_;
+    double d = 0, s = 0;
+    const double a = p_.approach, v = p_.speed;
+    if (kind_ == "press") {
+      d = t < t_in_ ? -a + v * t : p_.depth;
+    } else if (kind_ == "ramp") {
+      d = t < t_in_ ? -a + v * t : p_.depth - v * (t - t_in_);
+    } else if (kind_ == "sine") {
+      d = t < t_in_ ? -a + v * t
+                    : 0.5 * p_.depth * (1 - std::cos(2 * M_PI * p_.freq * (t - t_in_)));
+    } else {
+      const double t_slide = p_.length / v;
+      if (t < t_in_) {
+        d = -a + v * t;
+      } else if (t < t_in_ + t_slide) {
+        d = p_.depth;
+        s = v * (t - t_in_);
+      } else {
+        d = p_.depth - v * (t - t_in_ - t_slide);
+        s = p_.length;
+      }
+    }
+    out->t = t;
+    out->position = p_.at + d * p_.axis + s * p_.sweep_dir;
+    return true;
+  }
+
+ private:
+  ScriptParams p_;
+  std::string kind_;
+  double t_in_ = 0, end_ = 0;
+  long k_ = 0;
+};
+
+// Force-controlled hold (see the header).
+class CreepScript : public ProbeSource {
+ public:
+  explicit CreepScript(const ScriptParams& p) : p_(p), d_(-p.approach) {}
+
+  bool next(const Feedback* last, Sample* out) override {
+    const double t = k_ * p_.dt;
+    const double n = last ? -last->force.dot(p_.axis) : 0.0;  // N, pushing back along -axis
+    if (!holding_ && n >= p_.target_force) {
+      holding_ = true;
+      t_hold_ = t;
+    }
+    if (holding_ && t - t_hold_ > p_.hold) return false;
+    if (!holding_ && d_ >= p_.depth) {  // never reached the target: hold at the depth limit
+      holding_ = true;
+      t_hold_ = t;
+    }
+    if (k_ > 0) {
+      double rate = holding_ ? p_.gain * (p_.target_force - n) : p_.speed;
+      rate = std::clamp(rate, -p_.speed, p_.speed);
+      d_ = std::min(p_.depth, d_ + rate * p_.dt);
+    }
+    ++k_;
+    out->t = t;
+    out->position = p_.at + d_ * p_.axis;
+    return true;
+  }
+
+ private:
+  ScriptParams p_;
+  double d_;
+  bool holding_ = false;
+  double t_hold_ = 0;
+  long k_ = 0;
+};
+
+class Replay : public ProbeSource {
+ public:
+  explicit Replay(std::vector<TrajectoryRow> rows) : rows_(std::move(rows)) {}
+  bool next(const Feedback*, Sample* out) override {
+    if (i_ >= rows_.size()) return false;
+    out->t = rows_[i_].t;
+    out->position = rows_[i_].position;
+    ++i_;
+    return true;
+  }
+
+ private:
+  std::vector<TrajectoryRow> rows_;
+  std::size_t i_ = 0;
+};
+
+}  // namespace
+
+std::vector<std::string> script_names() { return {"press", "ramp", "sine", "sweep", "creep"}; }
+
+std::unique_ptr<ProbeSource> make_script(const std::string& name, const ScriptParams& in,
+                                         std::string* error) {
+  ScriptParams p = in;
+  auto bad = [&](const std::string& what) -> std::unique_ptr<ProbeSource> {
+    *error = name + ": " + what;
+    return nullptr;
+  };
+  if (!(p.axis.norm() > 0)) return bad("axis must be non-zero");
+  p.axis.normalize();
+  if (!(p.dt > 0) || p.dt > 1) return bad("dt must be in (0, 1] s");
+  if (!(p.speed > 0)) return bad("speed must be > 0 m/s");
+  if (!(p.depth >= 0) || p.depth > 0.5) return bad("depth must be in [0, 0.5] m");
+  if (!(p.approach >= 0) || p.approach > 0.5) return bad("approach must be in [0, 0.5] m");
+  if (!(p.hold >= 0)) return bad("hold must be >= 0 s");
+  if (name == "press" || name == "ramp") return std::make_unique<DepthScript>(p, name);
+  if (name == "sine") {
+    if (!(p.freq > 0) || !(p.cycles > 0)) return bad("freq and cycles must be > 0");
+    return std::make_unique<DepthScript>(p, name);
+  }
+  if (name == "sweep") {
+    Vec3 s = p.sweep_dir - p.sweep_dir.dot(p.axis) * p.axis;
+    if (!(s.norm() > 1e-9)) return bad("sweep direction must not be parallel to the axis");
+    p.sweep_dir = s.normalized();
+    if (!(p.length >= 0)) return bad("length must be >= 0 m");
+    return std::make_unique<DepthScript>(p, name);
+  }
+  if (name == "creep") {
+    if (!(p.target_force > 0)) return bad("target force must be > 0 N");
+    if (!(p.gain > 0)) return bad("gain must be > 0 m/(N s)");
+    return std::make_unique<CreepScript>(p);
+  }
+  *error = "unknown script \"" + name + "\" (press, ramp, sine, sweep, creep)";
+  return nullptr;
+}
+
+std::unique_ptr<ProbeSource> make_replay(std::vector<TrajectoryRow> rows_of_probe) {
+  return std::make_unique<Replay>(std::move(rows_of_probe));
+}
+
+}  // namespace conica::client
