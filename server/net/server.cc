@@ -58,7 +58,7 @@ bool is_loopback(const std::string& endpoint) {
 
 constexpr int kMaxFrames = 4;       // [identity][delimiter][payload] at most, one spare
 constexpr Clock kFinalSleepNs = 20000;  // the last stretch before a deadline: clock_nanosleep
-constexpr int kStatsEveryTicks = 250;   // percentile refresh period
+constexpr std::uint64_t kStatsEveryTicks = 100;  // percentile refresh period
 constexpr Clock kErrorLogPeriodNs = 10ull * 1000000000ull;
 
 }  // namespace
@@ -471,7 +471,9 @@ struct Server::Loop {
       input.add((t_in - wake) * 1e-3);
       stepping.add((t_step - t_in) * 1e-3);
       publish.add((t_pub - t_step) * 1e-3);
-      if (stats.ticks % kStatsEveryTicks == 0) {
+      // Percentiles a few times per second (and early on, so the first frames carry some).
+      if (stats.ticks % kStatsEveryTicks == 0 ||
+          (stats.ticks < kStatsEveryTicks && (stats.ticks & (stats.ticks - 1)) == 0)) {
         refresh_stats();
         log_stats(t_pub);
       }

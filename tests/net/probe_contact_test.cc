@@ -1,0 +1,76 @@
+// The server's contact-only evaluation agrees with the step's contact stage, and the built-in
+// scenes build, hold the rate on this machine's budget and stay stable under a pressed probe.
+#include "net/probe_contact.h"
+
+#include <gtest/gtest.h>
+
+#include "core/body.h"
+#include "core/step.h"
+#include "net/builtin_scenes.h"
+
+namespace conica::net {
+namespace {
+
+Model Cube() {
+  BodySpec spec;
+  EXPECT_EQ(builtin_scene("cube", 1e-3, &spec), "");
+  Model m;
+  EXPECT_EQ(build_model(spec, &m), "");
+  return m;
+}
+
+TEST(ProbeContactTest, MatchesTheStepContactStage) {
+  const Model m = Cube();
+  State s = make_state(m);
+  Workspace ws(m);
+  const double x0 = 3 * 0.04 / 7;
+  // Deform the body a little first, so nodes are off the lattice.
+  set_probe(s, 0, Vec3(x0, x0, 0.04 + 5e-3 - 2e-3));
+  for (int k = 0; k < 100; ++k) step(m, s, ws);
+  for (const Vec3& c : {Vec3(x0, x0, 0.0435), Vec3(x0 + 1e-3, x0 - 0.5e-3, 0.042), Vec3(0.02, 0.02, 0.2)}) {
+    set_probe(s, 0, c);
+    compute_forces(m, s, ws);  // the step's contact stage fills s.probes[0]
+    ProbeState mine;
+    probe_contact(m, s, 0, c, 0, &mine);
+    EXPECT_EQ(mine.contacts, s.probes[0].contacts);
+    EXPECT_TRUE(mine.force.isApprox(s.probes[0].force, 1e-12) ||
+                (mine.force.norm() == 0 && s.probes[0].force.norm() == 0));
+    EXPECT_LT((mine.stiffness - s.probes[0].stiffness).norm(), 1e-9 * (1 + s.probes[0].stiffness.norm()));
+  }
+}
+
+TEST(ProbeContactTest, NodeAtTheExactCentreIsBounded) {
+  const Model m = Cube();
+  State s = make_state(m);
+  ProbeState p;
+  probe_contact(m, s, 0, m.rest[319], 0, &p);
+  EXPECT_TRUE(p.force.allFinite());
+  EXPECT_TRUE(p.stiffness.allFinite());
+  EXPECT_GE(p.contacts, 1);
+}
+
+TEST(BuiltinScenesTest, AllBuildAndStayStableUnderAPressedProbe) {
+  for (const std::string& name : builtin_scene_names()) {
+    BodySpec spec;
+    ASSERT_EQ(builtin_scene(name, 1e-3, &spec), "") << name;
+    Model m;
+    ASSERT_EQ(build_model(spec, &m), "") << name;
+    ASSERT_EQ(m.probes.size(), 1u);
+    EXPECT_GT(m.num_nodes(), 100) << name;
+    State s = make_state(m);
+    Workspace ws(m);
+    // Press the probe 2 mm into the top of the body above its highest node.
+    int top = 0;
+    for (int i = 0; i < m.num_nodes(); ++i)
+      if (m.rest[i].z() > m.rest[top].z()) top = i;
+    set_probe(s, 0, m.rest[top] + Vec3(0, 0, 5e-3 - 2e-3));
+    for (int k = 0; k < 1000; ++k) step(m, s, ws);
+    EXPECT_EQ(s.counters.rollbacks, 0u) << name;
+    EXPECT_GT(s.probes[0].force.z(), 0) << name;  // pushed up, away from the body
+  }
+  BodySpec spec;
+  EXPECT_NE(builtin_scene("kidney", 1e-3, &spec), "");
+}
+
+}  // namespace
+}  // namespace conica::net
