@@ -10,15 +10,61 @@ namespace {
 
 double h_of(const Model& m) { return m.options.dt / m.options.substeps; }
 
-// Geometry and card loads of every spring; with_velocity adds dampers and Maxwell branches.
-void spring_loads(const Model& m, const State& s, Workspace& ws) {
-  const int ns = m.num_springs();
+// Geometry of every spring as a vectorisable pass over plain arrays (kept out of line so the
+// compiler sees raw doubles, not Eigen storage, and emits gathers): positions (num_nodes x 3),
+// results structure-of-arrays.
+[[gnu::noinline]] int geometry_kernel(int ns, const double* __restrict X,
+                                      const int* __restrict si, const int* __restrict sj,
+                                      const double* __restrict l0, const double* __restrict b,
+                                      const double* __restrict lmin, double* __restrict ux,
+                                      double* __restrict uy, double* __restrict uz,
+                                      double* __restrict len, double* __restrict defl) {
+  int short_springs = 0;
   for (int k = 0; k < ns; ++k) {
-    const Vec3 u = s.x[m.spring_j[k]] - s.x[m.spring_i[k]];
-    const double l = u.norm();
-    ws.length[k] = l;
-    ws.dir[k] = l > 0 ? Vec3(u / l) : Vec3::UnitX();
-    ws.deflection[k] = m.deflection_scale[k] * (m.rest_length[k] - l);
+    const int i = 3 * si[k], j = 3 * sj[k];
+    const double dx = X[j] - X[i], dy = X[j + 1] - X[i + 1], dz = X[j + 2] - X[i + 2];
+    const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+    // A zero-length spring gets a zero direction and so no force: bounded, never NaN.
+    const double inv = 1.0 / std::max(l, 1e-300);
+    ux[k] = dx * inv;
+    uy[k] = dy * inv;
+    uz[k] = dz * inv;
+    len[k] = l;
+    defl[k] = b[k] * (l0[k] - l);
+    short_springs += l < lmin[k];
+  }
+  return short_springs;
+}
+
+// Counts springs shorter than their hard-stop length (squared lengths, no square root).
+[[gnu::noinline]] int count_short(int ns, const double* __restrict X, const int* __restrict si,
+                                  const int* __restrict sj, const double* __restrict lmin2) {
+  int n = 0;
+  for (int k = 0; k < ns; ++k) {
+    const int i = 3 * si[k], j = 3 * sj[k];
+    const double dx = X[j] - X[i], dy = X[j + 1] - X[i + 1], dz = X[j + 2] - X[i + 2];
+    n += (dx * dx + dy * dy + dz * dz) < lmin2[k];
+  }
+  return n;
+}
+
+// Returns the number of springs shorter than their hard-stop length.
+int spring_geometry(const Model& m, const std::vector<Vec3>& x, Workspace& ws) {
+  return geometry_kernel(m.num_springs(), x.front().data(), m.spring_i.data(), m.spring_j.data(),
+                         m.rest_length.data(), m.deflection_scale.data(), ws.min_length.data(),
+                         ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.length.data(),
+                         ws.deflection.data());
+}
+
+void hard_stop_project(const Model& m, State& s, Workspace& ws);
+
+// Geometry and card loads of every spring, with dampers and Maxwell branches.
+// The hard stop runs here, before forces: a spring found shorter than its minimum length is
+// projected back and the geometry recomputed.
+void spring_loads(const Model& m, State& s, Workspace& ws) {
+  if (spring_geometry(m, s.x, ws) > 0) {
+    hard_stop_project(m, s, ws);
+    spring_geometry(m, s.x, ws);
   }
   for (const SpringGroup& g : m.groups) {
     const int n = g.end - g.begin;
@@ -34,7 +80,7 @@ void spring_loads(const Model& m, const State& s, Workspace& ws) {
     if (!g.viscous) continue;
     const double c = g.card.damping, km = g.card.maxwell_k;
     for (int k = g.begin; k < g.end; ++k) {
-      const double ldot = ws.dir[k].dot(s.v[m.spring_j[k]] - s.v[m.spring_i[k]]);
+      const double ldot = ws.dir(k).dot(s.v[m.spring_j[k]] - s.v[m.spring_i[k]]);
       const double ddot = -m.deflection_scale[k] * ldot;
       ws.load[k] += c * ddot + km * (ws.deflection[k] - s.maxwell[k]);
       ws.tangent[k] += km;
@@ -118,10 +164,19 @@ void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
   const double mu = m.options.mass_damping;
   for (int i = 0; i < nn; ++i) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
   const int ns = m.num_springs();
+  double* __restrict F = ws.force.front().data();
+  const double* __restrict a = m.force_scale.data();
+  const double* __restrict load = ws.load.data();
   for (int k = 0; k < ns; ++k) {
-    const Vec3 f = m.force_scale[k] * ws.load[k] * ws.dir[k];
-    ws.force[m.spring_i[k]] -= f;
-    ws.force[m.spring_j[k]] += f;
+    const double fk = a[k] * load[k];
+    const double fx = fk * ws.ux[k], fy = fk * ws.uy[k], fz = fk * ws.uz[k];
+    const int i = 3 * m.spring_i[k], j = 3 * m.spring_j[k];
+    F[i] -= fx;
+    F[i + 1] -= fy;
+    F[i + 2] -= fz;
+    F[j] += fx;
+    F[j + 1] += fy;
+    F[j + 2] += fz;
   }
   contact_forces(m, s, ws, with_jacobian);
 }
@@ -141,6 +196,12 @@ void relax_maxwell(const Model& m, State& s, double h) {
 // Projects springs shorter than their minimum length back to it (mass-weighted) and removes the
 // approaching part of their relative velocity.
 void hard_stop(const Model& m, State& s, Workspace& ws) {
+  if (count_short(m.num_springs(), s.x.front().data(), m.spring_i.data(), m.spring_j.data(),
+                  ws.min_length2.data()) > 0)
+    hard_stop_project(m, s, ws);
+}
+
+void hard_stop_project(const Model& m, State& s, Workspace& ws) {
   const int ns = m.num_springs();
   for (int k = 0; k < ns; ++k) {
     const int i = m.spring_i[k], j = m.spring_j[k];
@@ -150,7 +211,7 @@ void hard_stop(const Model& m, State& s, Workspace& ws) {
     if (l >= lmin) continue;
     const double wi = m.inv_mass[i], wj = m.inv_mass[j], w = wi + wj;
     if (w <= 0) continue;
-    const Vec3 d = l > 1e-15 ? Vec3(u / l) : ws.dir[k];
+    const Vec3 d = l > 1e-15 ? Vec3(u / l) : ws.dir(k);
     const double gap = lmin - l;
     s.x[i] -= ((wi / w) * gap * d).cwiseProduct(m.free_axes[i]);
     s.x[j] += ((wj / w) * gap * d).cwiseProduct(m.free_axes[j]);
@@ -194,7 +255,7 @@ void apply_system(const Model& m, const Workspace& ws, const std::vector<Vec3>& 
   for (int k = 0; k < ns; ++k) {
     const int i = m.spring_i[k], j = m.spring_j[k];
     const Vec3 w = p[j] - p[i];
-    const Vec3& d = ws.dir[k];
+    const Vec3 d = ws.dir(k);
     const Vec3 t = ws.beta[k] * w + (ws.alpha[k] - ws.beta[k]) * d.dot(w) * d;
     y[i] -= t;
     y[j] += t;
@@ -232,7 +293,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
         const double tension = -a * ws.load[k];
         ws.alpha[k] = h * h * kax + h * a * b * b * c;
         ws.beta[k] = h * h * std::max(0.0, tension / std::max(ws.length[k], 1e-300));
-        const Vec3& d = ws.dir[k];
+        const Vec3 d = ws.dir(k);
         const Mat3 blk = ws.beta[k] * Mat3::Identity() + (ws.alpha[k] - ws.beta[k]) * d * d.transpose();
         ws.diag_inv[m.spring_i[k]] += blk;
         ws.diag_inv[m.spring_j[k]] += blk;
@@ -317,8 +378,11 @@ Workspace::Workspace(const Model& m) {
   load.assign(ns, 0);
   tangent.assign(ns, 0);
   length.assign(ns, 0);
-  dir.assign(ns, Vec3::Zero());
+  ux.assign(ns, 1.0);
+  uy.assign(ns, 0);
+  uz.assign(ns, 0);
   min_length.assign(ns, 0);
+  min_length2.assign(ns, 0);
   alpha.assign(ns, 0);
   beta.assign(ns, 0);
   force.assign(nn, Vec3::Zero());
@@ -332,6 +396,7 @@ Workspace::Workspace(const Model& m) {
       double lmin = m.options.min_length_fraction * l0;
       if (g.law) lmin = std::max(lmin, l0 - g.law->stroke() / m.deflection_scale[k]);
       min_length[k] = lmin;
+      min_length2[k] = lmin * lmin;
     }
   }
 }
@@ -403,9 +468,11 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
       case Integrator::kExplicitEuler: integrate_explicit(m, s, ws, false); break;
       case Integrator::kImplicitEuler: integrate_implicit(m, s, ws); break;
     }
-    hard_stop(m, s, ws);
     relax_maxwell(m, s, h);
   }
+  // The stop is enforced before every force evaluation; a last check leaves no spring short at
+  // the end of the tick.
+  hard_stop(m, s, ws);
   ++s.counters.steps;
   ++s.tick;
   s.time += m.options.dt;

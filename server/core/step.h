@@ -36,11 +36,12 @@ namespace conica {
 
 struct Workspace {
   explicit Workspace(const Model& model);
+  Vec3 dir(int k) const { return Vec3(ux[k], uy[k], uz[k]); }
 
   std::vector<double> deflection, load, tangent;  // (num_springs) card units
   std::vector<double> length;                     // (num_springs) m
-  std::vector<Vec3> dir;                          // (num_springs) unit, i -> j
-  std::vector<double> min_length;                 // (num_springs) m, hard stop
+  std::vector<double> ux, uy, uz;                 // (num_springs) unit direction i -> j
+  std::vector<double> min_length, min_length2;    // (num_springs) m and m^2, hard stop
   std::vector<Vec3> force;                        // (num_nodes) N
   // Implicit solver.
   std::vector<double> alpha, beta;                // (num_springs) system coefficients

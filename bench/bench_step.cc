@@ -1,0 +1,76 @@
+// One simulation step for the paper's 320-node cube and a 4,096-node (16^3) block, with conical
+// and with linear (Hooke) springs, for each integrator.
+//   build/bin/bench_step --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <benchmark/benchmark.h>
+
+#include "core/body.h"
+#include "core/step.h"
+
+namespace {
+
+using namespace conica;
+
+// Nodes per side: 320-node cube is {8, 8, 5}; the block is {16, 16, 16}.
+Model MakeBody(std::array<int, 3> nodes, bool conical, Integrator integ) {
+  BodySpec b;
+  const double h = 0.01;  // 1 cm lattice
+  b.mesh = make_box_lattice(Vec3(h * (nodes[0] - 1), h * (nodes[1] - 1), h * (nodes[2] - 1)),
+                            {nodes[0] - 1, nodes[1] - 1, nodes[2] - 1});
+  b.density = 1000;
+  SpringCard c;
+  if (conical) {
+    c.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};
+    c.stiffness_cap = 20;
+  } else {
+    c.law = LawKind::kHooke;
+    c.hooke_k = 49.0196;
+    c.hooke_length = 10e-3;
+  }
+  b.groups.push_back({"tissue", c, kAllFamilies, {}, Vec3::Zero(), 10});
+  FixedSelector base;
+  base.kind = FixedSelector::Kind::kPlane;
+  b.fixed.push_back(base);
+  b.options.integrator = integ;
+  b.options.mass_damping = 5;
+  b.probes.push_back(ProbeSpec{0.008, 0});
+  Model m;
+  if (!build_model(b, &m).empty()) std::abort();
+  return m;
+}
+
+void BM_Step(benchmark::State& state) {
+  const bool big = state.range(0) == 1;
+  const bool conical = state.range(1) == 1;
+  const auto integ = static_cast<Integrator>(state.range(2));
+  const Model m = MakeBody(big ? std::array<int, 3>{16, 16, 16} : std::array<int, 3>{8, 8, 5},
+                           conical, integ);
+  State s = make_state(m);
+  Workspace ws(m);
+  // Press the probe into the top so that springs leave their linear phase.
+  Vec3 top = Vec3::Zero();
+  for (const Vec3& x : m.rest) top = top.cwiseMax(x);
+  set_probe(s, 0, Vec3(top.x() / 2, top.y() / 2, top.z() + 0.008 - 0.006));
+  for (int i = 0; i < 300; ++i) step(m, s, ws);
+  for (auto _ : state) {
+    step(m, s, ws);
+    benchmark::DoNotOptimize(s.x.data());
+  }
+  state.counters["nodes"] = m.num_nodes();
+  state.counters["springs"] = m.num_springs();
+  state.counters["ns_per_spring"] = benchmark::Counter(
+      static_cast<double>(state.iterations()) * m.num_springs(),
+      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.SetLabel(std::string(big ? "block4096" : "cube320") + (conical ? "/conical/" : "/hooke/") +
+                 integrator_name(integ));
+}
+
+void Args(benchmark::internal::Benchmark* b) {
+  for (int big : {0, 1})
+    for (int conical : {0, 1})
+      for (int integ : {0, 1, 2}) b->Args({big, conical, integ});
+}
+
+}  // namespace
+
+BENCHMARK(BM_Step)->Apply(Args)->Unit(benchmark::kMicrosecond);
+BENCHMARK_MAIN();
