@@ -3,14 +3,13 @@
 //   conica-server --scene FILE          a scene file
 //   conica-server --builtin liver --probe-endpoint tcp://127.0.0.1:6000 --seconds 10
 #include <signal.h>
+#include <spdlog/spdlog.h>
 #include <time.h>
 
+#include <CLI/CLI.hpp>
 #include <cerrno>
 #include <cstdio>
 #include <string>
-
-#include <CLI/CLI.hpp>
-#include <spdlog/spdlog.h>
 #include <zmq.hpp>
 
 #include "net/builtin_scenes.h"
@@ -46,7 +45,8 @@ int main(int argc, char** argv) {
   app.add_option("--probe-endpoint", opt.probe_endpoint, "ROUTER for probe updates");
   app.add_option("--state-endpoint", opt.state_endpoint, "PUB for state frames");
   app.add_option("--control-endpoint", opt.control_endpoint, "ROUTER for control requests");
-  app.add_option("--positions-hz", opt.positions_hz, "rate of frames with node positions, Hz (0: never)")
+  app.add_option("--positions-hz", opt.positions_hz,
+                 "rate of frames with node positions, Hz (0: never)")
       ->check(CLI::Range(0.0, 20000.0));
   app.add_option("--seconds", seconds, "run for this long, then exit (0: until SIGINT/SIGTERM)")
       ->check(CLI::Range(0.0, 1e9));
@@ -95,7 +95,8 @@ int main(int argc, char** argv) {
     timespec end{};
     clock_gettime(CLOCK_MONOTONIC, &end);
     end.tv_sec += static_cast<time_t>(seconds);
-    end.tv_nsec += static_cast<long>((seconds - static_cast<double>(static_cast<time_t>(seconds))) * 1e9);
+    end.tv_nsec +=
+        static_cast<long>((seconds - static_cast<double>(static_cast<time_t>(seconds))) * 1e9);
     if (end.tv_nsec >= 1000000000L) {
       end.tv_sec += 1;
       end.tv_nsec -= 1000000000L;
@@ -110,13 +111,14 @@ int main(int argc, char** argv) {
       if (seconds > 0) {
         timespec now{};
         clock_gettime(CLOCK_MONOTONIC, &now);
-        if (now.tv_sec > end.tv_sec || (now.tv_sec == end.tv_sec && now.tv_nsec >= end.tv_nsec)) break;
+        if (now.tv_sec > end.tv_sec || (now.tv_sec == end.tv_sec && now.tv_nsec >= end.tv_nsec))
+          break;
       }
     }
     server.stop();  // closes the sockets (linger 0) before the context goes
     const auto s = server.stats();
-    spdlog::info("stopped after {} ticks ({} missed), {} probes, {} errors", s.ticks, s.missed_ticks,
-                 s.probes_received, s.errors);
+    spdlog::info("stopped after {} ticks ({} missed), {} probes, {} errors", s.ticks,
+                 s.missed_ticks, s.probes_received, s.errors);
   }
   return 0;
 }

@@ -67,13 +67,16 @@ std::string builtin_scene(const std::string& name, double dt, BodySpec* spec) {
     const Vec3 size(0.14, 0.10, 0.05);
     const Mesh box = make_box_lattice(size, {20, 14, 7});
     // A half ellipsoid on z = 0, thicker on the right lobe (+x), narrowing to the left.
-    *spec = base_spec(carve(box, [&](const Vec3& c) {
-      const double u = (c.x() - 0.5 * size.x()) / (0.5 * size.x());
-      const double v = (c.y() - 0.5 * size.y()) / (0.5 * size.y() * (0.75 + 0.25 * u));
-      const double height = size.z() * (0.55 + 0.45 * (0.5 + 0.5 * u));
-      const double w = c.z() / height;
-      return u * u + v * v + w * w <= 1.0;
-    }), dt);
+    *spec = base_spec(carve(box,
+                            [&](const Vec3& c) {
+                              const double u = (c.x() - 0.5 * size.x()) / (0.5 * size.x());
+                              const double v =
+                                  (c.y() - 0.5 * size.y()) / (0.5 * size.y() * (0.75 + 0.25 * u));
+                              const double height = size.z() * (0.55 + 0.45 * (0.5 + 0.5 * u));
+                              const double w = c.z() / height;
+                              return u * u + v * v + w * w <= 1.0;
+                            }),
+                      dt);
   } else {
     return "unknown builtin scene \"" + name + "\" (cube, block, liver)";
   }

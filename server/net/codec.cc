@@ -28,13 +28,20 @@ bool fail(DecodeError* err, ErrorKind kind, const char* message, std::uint64_t s
 
 const char* error_kind_name(ErrorKind kind) {
   switch (kind) {
-    case ErrorKind::kMalformed: return "malformed";
-    case ErrorKind::kWrongType: return "wrong type";
-    case ErrorKind::kTooLarge: return "too large";
-    case ErrorKind::kBadValue: return "bad value";
-    case ErrorKind::kUnknownProbe: return "unknown probe";
-    case ErrorKind::kUnsupportedVersion: return "unsupported version";
-    case ErrorKind::kBadRequest: return "bad request";
+    case ErrorKind::kMalformed:
+      return "malformed";
+    case ErrorKind::kWrongType:
+      return "wrong type";
+    case ErrorKind::kTooLarge:
+      return "too large";
+    case ErrorKind::kBadValue:
+      return "bad value";
+    case ErrorKind::kUnknownProbe:
+      return "unknown probe";
+    case ErrorKind::kUnsupportedVersion:
+      return "unsupported version";
+    case ErrorKind::kBadRequest:
+      return "bad request";
   }
   return "?";
 }
@@ -52,8 +59,8 @@ void body_box(const Model& model, double margin, ProbeLimits* limits) {
   limits->num_probes = static_cast<int>(model.probes.size());
 }
 
-bool parse_client(const void* data, std::size_t size, std::size_t max_bytes,
-                  v1::ClientMessage* msg, DecodeError* err) {
+bool parse_client(const void* data, std::size_t size, std::size_t max_bytes, v1::ClientMessage* msg,
+                  DecodeError* err) {
   if (size > max_bytes) return fail(err, ErrorKind::kTooLarge, "message larger than the limit");
   if (size == 0) return fail(err, ErrorKind::kMalformed, "empty message");
   if (size > static_cast<std::size_t>(std::numeric_limits<int>::max()) ||
@@ -72,7 +79,8 @@ bool decode_probe(const v1::ClientMessage& msg, const ProbeLimits& lim, ProbeInp
   const std::uint64_t seq = p.sequence();
   // A message of another type can parse as a ProbeUpdate whose fields all went to unknown
   // fields; a probe update always carries a position.
-  if (!p.has_position()) return fail(err, ErrorKind::kBadRequest, "probe update without position", seq);
+  if (!p.has_position())
+    return fail(err, ErrorKind::kBadRequest, "probe update without position", seq);
   if (p.probe_id() >= static_cast<std::uint32_t>(lim.num_probes))
     return fail(err, ErrorKind::kUnknownProbe, "no probe with this probe_id in the scene", seq);
   const v1::Vec3& x = p.position();
@@ -86,7 +94,8 @@ bool decode_probe(const v1::ClientMessage& msg, const ProbeLimits& lim, ProbeInp
     return fail(err, ErrorKind::kBadValue, "probe velocity is NaN or Inf", seq);
   const double r = p.radius();
   if (!std::isfinite(r) || r < 0 || r > lim.max_radius)
-    return fail(err, ErrorKind::kBadValue, "probe radius must be in (0, 1] m (0 keeps the scene's)", seq);
+    return fail(err, ErrorKind::kBadValue, "probe radius must be in (0, 1] m (0 keeps the scene's)",
+                seq);
   out->client_id = p.client_id();
   out->probe_id = static_cast<int>(p.probe_id());
   out->sequence = seq;
@@ -101,7 +110,8 @@ bool decode_control(const v1::ClientMessage& msg, const v1::ControlRequest** out
   if (msg.body_case() != v1::ClientMessage::kControl)
     return fail(err, ErrorKind::kWrongType, "the control socket takes ClientMessage{control} only");
   const v1::ControlRequest& c = msg.control();
-  if (!v1::ControlRequest::Kind_IsValid(c.kind()) || c.kind() == v1::ControlRequest::KIND_UNSPECIFIED)
+  if (!v1::ControlRequest::Kind_IsValid(c.kind()) ||
+      c.kind() == v1::ControlRequest::KIND_UNSPECIFIED)
     return fail(err, ErrorKind::kBadRequest, "unknown control kind", c.sequence());
   *out = &c;
   return true;

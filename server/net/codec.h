@@ -34,8 +34,8 @@ const char* error_kind_name(ErrorKind kind);
 
 struct DecodeError {
   ErrorKind kind = ErrorKind::kMalformed;
-  const char* message = "";   // static text, no allocation
-  std::uint64_t sequence = 0; // echoed when the message got that far
+  const char* message = "";    // static text, no allocation
+  std::uint64_t sequence = 0;  // echoed when the message got that far
 };
 
 // What a probe update may contain. A position passes when it is finite, |x_i| <= max_abs_position
@@ -62,8 +62,8 @@ struct ProbeInput {
 
 // Parses bytes into `msg` (size > max_bytes: kTooLarge, unparseable: kMalformed) and checks the
 // protocol version.
-bool parse_client(const void* data, std::size_t size, std::size_t max_bytes,
-                  v1::ClientMessage* msg, DecodeError* err);
+bool parse_client(const void* data, std::size_t size, std::size_t max_bytes, v1::ClientMessage* msg,
+                  DecodeError* err);
 
 // A parsed message on the probe socket: must hold a ProbeUpdate with a position, a known probe
 // id and sane values.
@@ -71,8 +71,7 @@ bool decode_probe(const v1::ClientMessage& msg, const ProbeLimits& limits, Probe
                   DecodeError* err);
 
 // A parsed message on the control socket: must hold a ControlRequest of a known kind.
-bool decode_control(const v1::ClientMessage& msg, const v1::ControlRequest** out,
-                    DecodeError* err);
+bool decode_control(const v1::ClientMessage& msg, const v1::ControlRequest** out, DecodeError* err);
 
 // Loop statistics in core units, filled by the server, encoded into LoopStats.
 struct LoopStatsData {

@@ -5,8 +5,8 @@
 
 namespace conica::net {
 
-void probe_contact(const Model& model, const State& state, int k, const Vec3& center,
-                   double radius, ProbeState* probe) {
+void probe_contact(const Model& model, const State& state, int k, const Vec3& center, double radius,
+                   ProbeState* probe) {
   probe->force.setZero();
   probe->stiffness.setZero();
   probe->contacts = 0;

@@ -15,7 +15,7 @@ namespace conica::net {
 
 // Fills probe->force, ->stiffness and ->contacts for a sphere of radius `radius` (m; <= 0: the
 // model's) centred at `center` (m), with the model's penalty for probe `k`.
-void probe_contact(const Model& model, const State& state, int k, const Vec3& center,
-                   double radius, ProbeState* probe);
+void probe_contact(const Model& model, const State& state, int k, const Vec3& center, double radius,
+                   ProbeState* probe);
 
 }  // namespace conica::net

@@ -1,8 +1,10 @@
 #include "net/server.h"
 
+#include <google/protobuf/arena.h>
 #include <poll.h>
 #include <pthread.h>
 #include <sched.h>
+#include <spdlog/spdlog.h>
 #include <sys/mman.h>
 #include <sys/prctl.h>
 #include <time.h>
@@ -13,9 +15,6 @@
 #include <cstring>
 #include <future>
 #include <vector>
-
-#include <google/protobuf/arena.h>
-#include <spdlog/spdlog.h>
 
 #include "core/step.h"
 #include "net/loop_stats.h"
@@ -52,11 +51,12 @@ bool is_loopback(const std::string& endpoint) {
   if (endpoint.rfind(tcp, 0) != 0) return true;
   std::string host = endpoint.substr(tcp.size());
   host = host.substr(0, host.rfind(':'));
-  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
   return host.rfind("127.", 0) == 0 || host == "localhost" || host == "::1";
 }
 
-constexpr int kMaxFrames = 4;       // [identity][delimiter][payload] at most, one spare
+constexpr int kMaxFrames = 4;           // [identity][delimiter][payload] at most, one spare
 constexpr Clock kFinalSleepNs = 20000;  // the last stretch before a deadline: clock_nanosleep
 constexpr std::uint64_t kStatsEveryTicks = 100;  // percentile refresh period
 constexpr Clock kErrorLogPeriodNs = 10ull * 1000000000ull;
@@ -123,7 +123,9 @@ struct Server::Loop {
       pub.set(zmq::sockopt::sndhwm, opt.pub_sndhwm);
       Endpoints ep;
       const std::pair<zmq::socket_t*, const std::string*> binds[] = {
-          {&probe, &opt.probe_endpoint}, {&pub, &opt.state_endpoint}, {&control, &opt.control_endpoint}};
+          {&probe, &opt.probe_endpoint},
+          {&pub, &opt.state_endpoint},
+          {&control, &opt.control_endpoint}};
       std::string* resolved[] = {&ep.probe, &ep.state, &ep.control};
       for (int k = 0; k < 3; ++k) {
         const std::string& e = *binds[k].second;
@@ -209,8 +211,12 @@ struct Server::Loop {
     msg.SerializeWithCachedSizesToArray(out.data());
     try {
       bool ok = s.send(frames[0], zmq::send_flags::sndmore | zmq::send_flags::dontwait).has_value();
-      if (ok && payload == 2) ok = s.send(zmq::const_buffer(nullptr, 0), zmq::send_flags::sndmore | zmq::send_flags::dontwait).has_value();
-      if (ok) ok = s.send(zmq::const_buffer(out.data(), size), zmq::send_flags::dontwait).has_value();
+      if (ok && payload == 2)
+        ok = s.send(zmq::const_buffer(nullptr, 0),
+                    zmq::send_flags::sndmore | zmq::send_flags::dontwait)
+                 .has_value();
+      if (ok)
+        ok = s.send(zmq::const_buffer(out.data(), size), zmq::send_flags::dontwait).has_value();
       if (&s == &probe) ok ? ++stats.replies_sent : ++stats.replies_dropped;
     } catch (const zmq::error_t&) {
       ++stats.replies_dropped;  // EHOSTUNREACH and kin: the client is gone
@@ -227,7 +233,9 @@ struct Server::Loop {
       return;
     }
     spdlog::warn("{} socket: {} message ({}){}", socket, error_kind_name(err.kind), err.message,
-                 error_suppressed[code] ? fmt::format("; {} more since the last report", error_suppressed[code]) : "");
+                 error_suppressed[code]
+                     ? fmt::format("; {} more since the last report", error_suppressed[code])
+                     : "");
     error_logged_at[code] = t;
     error_suppressed[code] = 0;
   }
@@ -253,8 +261,9 @@ struct Server::Loop {
         continue;
       }
       auto* msg = google::protobuf::Arena::CreateMessage<v1::ClientMessage>(arena.get());
-      const bool ok = parse_client(frames[p].data(), frames[p].size(), opt.max_message_bytes, msg, &err) &&
-                      decode_probe(*msg, limits, &in, &err);
+      const bool ok =
+          parse_client(frames[p].data(), frames[p].size(), opt.max_message_bytes, msg, &err) &&
+          decode_probe(*msg, limits, &in, &err);
       arena->Reset();
       if (!ok) {
         reply_error(probe, p, err, "probe");
@@ -327,7 +336,8 @@ struct Server::Loop {
         use_model(srv.model_.get());
         spdlog::info("loaded scene {}: {} nodes, {} springs, step {:.1f} us", req.text(),
                      model->num_nodes(), model->num_springs(), cost);
-        reply->set_message(fmt::format("loaded {} nodes, step {:.1f} us", model->num_nodes(), cost));
+        reply->set_message(
+            fmt::format("loaded {} nodes, step {:.1f} us", model->num_nodes(), cost));
         return;
       }
       case K::RESET:
@@ -347,12 +357,18 @@ struct Server::Loop {
         // The model is immutable during a step; between ticks the server owns it.
         Model& m = *srv.model_;
         bool ok = std::isfinite(v);
-        if (ok && req.name() == "damping" && v >= 0) m.options.mass_damping = v;
-        else if (ok && req.name() == "gravity_x") m.options.gravity.x() = v;
-        else if (ok && req.name() == "gravity_y") m.options.gravity.y() = v;
-        else if (ok && req.name() == "gravity_z") m.options.gravity.z() = v;
-        else if (ok && req.name() == "positions_hz" && v >= 0) set_positions_rate(v);
-        else ok = false;
+        if (ok && req.name() == "damping" && v >= 0)
+          m.options.mass_damping = v;
+        else if (ok && req.name() == "gravity_x")
+          m.options.gravity.x() = v;
+        else if (ok && req.name() == "gravity_y")
+          m.options.gravity.y() = v;
+        else if (ok && req.name() == "gravity_z")
+          m.options.gravity.z() = v;
+        else if (ok && req.name() == "positions_hz" && v >= 0)
+          set_positions_rate(v);
+        else
+          ok = false;
         reply->set_ok(ok);
         reply->set_message(ok ? req.name() + " set"
                               : "unknown parameter or bad value (damping >= 0 1/s, gravity_x|y|z "
@@ -408,7 +424,8 @@ struct Server::Loop {
     const char topic = positions ? 'S' : 'F';
     try {
       // PUB never blocks: at the high-water mark a subscriber's frames are dropped.
-      if (pub.send(zmq::const_buffer(&topic, 1), zmq::send_flags::sndmore | zmq::send_flags::dontwait))
+      if (pub.send(zmq::const_buffer(&topic, 1),
+                   zmq::send_flags::sndmore | zmq::send_flags::dontwait))
         (void)pub.send(zmq::const_buffer(out.data(), size), zmq::send_flags::dontwait);
     } catch (const zmq::error_t&) {
     }
@@ -509,7 +526,8 @@ LoopStatsData Server::stats() const {
   return stats_;
 }
 
-std::string Server::prepare(const BodySpec& spec, std::unique_ptr<Model>* out, double* step_us) const {
+std::string Server::prepare(const BodySpec& spec, std::unique_ptr<Model>* out,
+                            double* step_us) const {
   auto m = std::make_unique<Model>();
   if (std::string e = build_model(spec, m.get()); !e.empty()) return e;
   const double period_s = 1.0 / options_.rate_hz;
@@ -531,11 +549,13 @@ std::string Server::prepare(const BodySpec& spec, std::unique_ptr<Model>* out, d
   const double period_us = 1e6 * period_s;
   *step_us = median;
   if (median > period_us && options_.refuse_slow_scene)
-    return fmt::format("the step costs {:.0f} us (median of 50), more than the {:.0f} us period "
-                       "at {} Hz: lower the rate or simplify the scene",
-                       median, period_us, options_.rate_hz);
+    return fmt::format(
+        "the step costs {:.0f} us (median of 50), more than the {:.0f} us period "
+        "at {} Hz: lower the rate or simplify the scene",
+        median, period_us, options_.rate_hz);
   if (median > 0.5 * period_us)
-    spdlog::warn("the step costs {:.0f} us of the {:.0f} us period: ticks may be missed", median, period_us);
+    spdlog::warn("the step costs {:.0f} us of the {:.0f} us period: ticks may be missed", median,
+                 period_us);
   *out = std::move(m);
   return {};
 }

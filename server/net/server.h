@@ -25,7 +25,6 @@
 #include <mutex>
 #include <string>
 #include <thread>
-
 #include <zmq.hpp>
 
 #include "core/body.h"
@@ -38,11 +37,11 @@ struct ServerOptions {
   std::string probe_endpoint = "tcp://127.0.0.1:5555";
   std::string state_endpoint = "tcp://127.0.0.1:5556";
   std::string control_endpoint = "tcp://127.0.0.1:5557";
-  double rate_hz = 1000;          // loop rate; the model's dt should be 1 / rate_hz
-  double positions_hz = 60;       // "S" frames with node positions (0: never)
-  double log_period_s = 10;       // loop statistics at info level (0: never)
+  double rate_hz = 1000;              // loop rate; the model's dt should be 1 / rate_hz
+  double positions_hz = 60;           // "S" frames with node positions (0: never)
+  double log_period_s = 10;           // loop statistics at info level (0: never)
   int max_message_bytes = 64 * 1024;  // larger client messages: TOO_LARGE (transport drops them)
-  int pub_sndhwm = 16;            // messages queued per subscriber before PUB drops
+  int pub_sndhwm = 16;                // messages queued per subscriber before PUB drops
   double box_margin = 0.25;       // m: probe positions must lie within the body box grown by this
   bool realtime = false;          // try SCHED_FIFO and mlockall (logged at info when refused)
   int window = 2048;              // ticks in the rolling statistics window

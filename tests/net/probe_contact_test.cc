@@ -27,7 +27,8 @@ TEST(ProbeContactTest, MatchesTheStepContactStage) {
   // Deform the body a little first, so nodes are off the lattice.
   set_probe(s, 0, Vec3(x0, x0, 0.04 + 5e-3 - 2e-3));
   for (int k = 0; k < 100; ++k) step(m, s, ws);
-  for (const Vec3& c : {Vec3(x0, x0, 0.0435), Vec3(x0 + 1e-3, x0 - 0.5e-3, 0.042), Vec3(0.02, 0.02, 0.2)}) {
+  for (const Vec3& c :
+       {Vec3(x0, x0, 0.0435), Vec3(x0 + 1e-3, x0 - 0.5e-3, 0.042), Vec3(0.02, 0.02, 0.2)}) {
     set_probe(s, 0, c);
     compute_forces(m, s, ws);  // the step's contact stage fills s.probes[0]
     ProbeState mine;
@@ -35,7 +36,8 @@ TEST(ProbeContactTest, MatchesTheStepContactStage) {
     EXPECT_EQ(mine.contacts, s.probes[0].contacts);
     EXPECT_TRUE(mine.force.isApprox(s.probes[0].force, 1e-12) ||
                 (mine.force.norm() == 0 && s.probes[0].force.norm() == 0));
-    EXPECT_LT((mine.stiffness - s.probes[0].stiffness).norm(), 1e-9 * (1 + s.probes[0].stiffness.norm()));
+    EXPECT_LT((mine.stiffness - s.probes[0].stiffness).norm(),
+              1e-9 * (1 + s.probes[0].stiffness.norm()));
   }
 }
 

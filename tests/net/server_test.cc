@@ -22,14 +22,15 @@
 namespace conica::net {
 namespace {
 
-constexpr double kTop = 0.04;            // m, top face of the built-in cube
-constexpr double kNode = 3 * 0.04 / 7;   // m, x and y of a lattice column
-constexpr double kRadius = 5e-3;         // m
+constexpr double kTop = 0.04;           // m, top face of the built-in cube
+constexpr double kNode = 3 * 0.04 / 7;  // m, x and y of a lattice column
+constexpr double kRadius = 5e-3;        // m
 constexpr int kTimeoutMs = 5000;
 
 std::uint64_t mono_ns() {
-  return static_cast<std::uint64_t>(
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count());
+  return static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                        std::chrono::steady_clock::now().time_since_epoch())
+                                        .count());
 }
 
 std::string Bytes(const google::protobuf::Message& m) { return m.SerializeAsString(); }
@@ -120,8 +121,8 @@ class ServerTest : public ::testing::TestWithParam<bool> {  // param: TCP (else 
     ASSERT_EQ(server_->start(), "");
   }
 
-  v1::ControlReply Control(v1::ControlRequest::Kind kind, const std::string& name = "", double value = 0,
-                           const std::string& text = "") {
+  v1::ControlReply Control(v1::ControlRequest::Kind kind, const std::string& name = "",
+                           double value = 0, const std::string& text = "") {
     Client c(ctx_, server_->endpoints().control);
     v1::ClientMessage m = ControlMsg(kind, 77);
     m.mutable_control()->set_name(name);
@@ -162,7 +163,7 @@ TEST_P(ServerTest, PressingIntoTheTopFacePushesUpHarderWithDepth) {
     const v1::ForceReply f = c.probe(++seq, Pressed(depth));
     EXPECT_TRUE(f.contact());
     const Vec3 F = V(f.force());
-    EXPECT_GT(F.z(), last) << depth;  // up, away from the body, growing
+    EXPECT_GT(F.z(), last) << depth;                    // up, away from the body, growing
     EXPECT_LT(std::hypot(F.x(), F.y()), 1e-6 * F.z());  // centred over a node column
     last = F.z();
   }
@@ -266,7 +267,8 @@ TEST_P(ServerTest, EveryBadInputIsAnsweredCountedAndChangesNothing) {
     force.set_protocol_version(1);
     force.mutable_force()->set_sequence(5);
     force.mutable_force()->mutable_force()->set_z(1);
-    expect_error(Bytes(force), {v1::Error::WRONG_TYPE, v1::Error::BAD_REQUEST}, "ServerMessage{force}");
+    expect_error(Bytes(force), {v1::Error::WRONG_TYPE, v1::Error::BAD_REQUEST},
+                 "ServerMessage{force}");
     v1::ServerMessage state;
     state.set_protocol_version(1);
     state.mutable_state()->set_tick(5);
@@ -275,7 +277,8 @@ TEST_P(ServerTest, EveryBadInputIsAnsweredCountedAndChangesNothing) {
   expect_error(Bytes(ProbeMsg(2, Vec3(nan, 0.02, 0.02))), {v1::Error::BAD_VALUE}, "NaN");
   expect_error(Bytes(ProbeMsg(3, Vec3(0.02, inf, 0.02))), {v1::Error::BAD_VALUE}, "Inf");
   expect_error(Bytes(ProbeMsg(4, Vec3(0.02, 0.02, 1e9))), {v1::Error::BAD_VALUE}, "1e9 m");
-  expect_error(Bytes(ProbeMsg(5, Vec3(0.02, 0.02, 3.0))), {v1::Error::BAD_VALUE}, "outside the box");
+  expect_error(Bytes(ProbeMsg(5, Vec3(0.02, 0.02, 3.0))), {v1::Error::BAD_VALUE},
+               "outside the box");
   {
     v1::ClientMessage r = ProbeMsg(6, good);
     r.mutable_probe()->set_radius(-1);
@@ -287,7 +290,8 @@ TEST_P(ServerTest, EveryBadInputIsAnsweredCountedAndChangesNothing) {
     v.set_protocol_version(9);
     expect_error(Bytes(v), {v1::Error::UNSUPPORTED_VERSION}, "wrong version");
   }
-  expect_error(Bytes(ControlMsg(v1::ControlRequest::PAUSE)), {v1::Error::WRONG_TYPE}, "control on probe socket");
+  expect_error(Bytes(ControlMsg(v1::ControlRequest::PAUSE)), {v1::Error::WRONG_TYPE},
+               "control on probe socket");
   {
     // Three frames that are not an [empty delimiter][payload] envelope.
     c.socket().send(zmq::str_buffer("a"), zmq::send_flags::sndmore);
@@ -311,7 +315,8 @@ TEST_P(ServerTest, EveryBadInputIsAnsweredCountedAndChangesNothing) {
   {
     Client ctl(ctx_, server_->endpoints().control);
     expect_error("\x08\x01\x1a\x03\xff\xff", {v1::Error::MALFORMED}, "control garbage", &ctl);
-    expect_error(Bytes(ProbeMsg(9, good)), {v1::Error::WRONG_TYPE}, "probe on control socket", &ctl);
+    expect_error(Bytes(ProbeMsg(9, good)), {v1::Error::WRONG_TYPE}, "probe on control socket",
+                 &ctl);
     v1::ClientMessage k = ControlMsg(static_cast<v1::ControlRequest::Kind>(42));
     expect_error(Bytes(k), {v1::Error::BAD_REQUEST}, "unknown control kind", &ctl);
   }
@@ -331,7 +336,8 @@ TEST_P(ServerTest, EveryBadInputIsAnsweredCountedAndChangesNothing) {
   EXPECT_EQ(stats.stats().errors(), total);
   EXPECT_TRUE(stats.stats().paused());
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  EXPECT_GT(Control(v1::ControlRequest::GET_STATS).stats().ticks(), stats.stats().ticks());  // still ticking
+  EXPECT_GT(Control(v1::ControlRequest::GET_STATS).stats().ticks(),
+            stats.stats().ticks());  // still ticking
 }
 
 TEST_P(ServerTest, ControlRequests) {
@@ -406,7 +412,9 @@ TEST(ServerStandaloneTest, LoadSceneSwapsTheBodyWhileRunningAndKeepsItOnFailure)
   opt.control_endpoint = "inproc://load-control";
   opt.log_period_s = 0;
   opt.refuse_slow_scene = false;
-  opt.scene_loader = [](const std::string& name, BodySpec* spec) { return builtin_scene(name, 1e-3, spec); };
+  opt.scene_loader = [](const std::string& name, BodySpec* spec) {
+    return builtin_scene(name, 1e-3, spec);
+  };
   Server server(ctx, opt);
   BodySpec spec;
   ASSERT_EQ(builtin_scene("cube", 1e-3, &spec), "");
@@ -455,12 +463,14 @@ TEST(ServerLatencyTest, LoopbackRoundTripsAreAnsweredBetweenTicks) {
     const v1::ForceReply f = c.probe(k, Pressed(1e-3 + 1e-6 * (k % 10)));
     rtt.push_back((mono_ns() - t0) * 1e-3);
     EXPECT_TRUE(f.contact());
-    std::this_thread::sleep_for(std::chrono::microseconds(300 + 137 * (k % 7)));  // off the tick grid
+    std::this_thread::sleep_for(
+        std::chrono::microseconds(300 + 137 * (k % 7)));  // off the tick grid
   }
   std::sort(rtt.begin(), rtt.end());
   const double p50 = rtt[rtt.size() / 2], p99 = rtt[rtt.size() * 99 / 100];
-  std::printf("probe round trip over loopback TCP: p50 %.0f us, p99 %.0f us, max %.0f us (n = %zu)\n", p50,
-              p99, rtt.back(), rtt.size());
+  std::printf(
+      "probe round trip over loopback TCP: p50 %.0f us, p99 %.0f us, max %.0f us (n = %zu)\n", p50,
+      p99, rtt.back(), rtt.size());
   // A reply that waited for the next tick would take ~500 us on average; answering between
   // ticks is far below that. Loose bound for a loaded machine.
   EXPECT_LT(p50, 5000);
