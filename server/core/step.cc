@@ -48,6 +48,22 @@ double h_of(const Model& m) { return m.options.dt / m.options.substeps; }
   return n;
 }
 
+// Springs that x + t dx would make shorter than their hard-stop length and than they are now.
+[[gnu::noinline]] int count_blocked(int ns, const double* __restrict X, const double* __restrict DX,
+                                    double t, const int* __restrict si, const int* __restrict sj,
+                                    const double* __restrict lmin2, const double* __restrict len) {
+  int n = 0;
+  for (int k = 0; k < ns; ++k) {
+    const int i = 3 * si[k], j = 3 * sj[k];
+    const double dx = X[j] + t * DX[j] - X[i] - t * DX[i];
+    const double dy = X[j + 1] + t * DX[j + 1] - X[i + 1] - t * DX[i + 1];
+    const double dz = X[j + 2] + t * DX[j + 2] - X[i + 2] - t * DX[i + 2];
+    const double l2 = dx * dx + dy * dy + dz * dz;
+    n += (l2 < lmin2[k]) & (l2 < len[k] * len[k]);
+  }
+  return n;
+}
+
 // Returns the number of springs shorter than their hard-stop length.
 int spring_geometry(const Model& m, const std::vector<Vec3>& x, Workspace& ws) {
   return geometry_kernel(m.num_springs(), x.front().data(), m.spring_i.data(), m.spring_j.data(),
@@ -241,25 +257,54 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
   }
 }
 
-// y = A p with A = M (1 + h mu) + sum_s [alpha d d^T + beta (I - d d^T)] (+ contact) on free nodes.
+// Per-spring part of y = A p: t_k = beta w + (alpha - beta)(d.w) d with w = p_j - p_i, scattered
+// as y_i -= t_k, y_j += t_k. Two passes per chunk: a vectorisable one computing t, then the
+// scatter, so the chunk's t stays in L1.
+[[gnu::noinline]] void system_springs(int ns, const double* __restrict P, const int* __restrict si,
+                                      const int* __restrict sj, const double* __restrict ux,
+                                      const double* __restrict uy, const double* __restrict uz,
+                                      const double* __restrict alpha,
+                                      const double* __restrict beta, double* __restrict Y) {
+  constexpr int kChunk = 512;
+  alignas(64) double tx[kChunk], ty[kChunk], tz[kChunk];
+  for (int begin = 0; begin < ns; begin += kChunk) {
+    const int n = std::min(kChunk, ns - begin);
+    const int* __restrict ci = si + begin;
+    const int* __restrict cj = sj + begin;
+    for (int q = 0; q < n; ++q) {
+      const int k = begin + q;
+      const int i = 3 * ci[q], j = 3 * cj[q];
+      const double wx = P[j] - P[i], wy = P[j + 1] - P[i + 1], wz = P[j + 2] - P[i + 2];
+      const double c = (alpha[k] - beta[k]) * (ux[k] * wx + uy[k] * wy + uz[k] * wz);
+      tx[q] = beta[k] * wx + c * ux[k];
+      ty[q] = beta[k] * wy + c * uy[k];
+      tz[q] = beta[k] * wz + c * uz[k];
+    }
+    for (int q = 0; q < n; ++q) {
+      const int i = 3 * ci[q], j = 3 * cj[q];
+      Y[i] -= tx[q];
+      Y[i + 1] -= ty[q];
+      Y[i + 2] -= tz[q];
+      Y[j] += tx[q];
+      Y[j + 1] += ty[q];
+      Y[j + 2] += tz[q];
+    }
+  }
+}
+
+// y = A p with A = M (1 + h mu) + sum_s [alpha d d^T + beta (I - d d^T)] (+ contact) on free
+// axes.
 void apply_system(const Model& m, const Workspace& ws, const std::vector<Vec3>& p,
                   std::vector<Vec3>& y) {
   const int nn = m.num_nodes();
   const double mfac = 1.0 + h_of(m) * m.options.mass_damping;
   for (int i = 0; i < nn; ++i) {
-    y[i] = m.mass[i] * mfac * p[i];
     const Vec3& cn = ws.contact_n[i];
-    y[i] += cn * cn.dot(p[i]);
+    y[i] = m.mass[i] * mfac * p[i] + cn * cn.dot(p[i]);
   }
-  const int ns = m.num_springs();
-  for (int k = 0; k < ns; ++k) {
-    const int i = m.spring_i[k], j = m.spring_j[k];
-    const Vec3 w = p[j] - p[i];
-    const Vec3 d = ws.dir(k);
-    const Vec3 t = ws.beta[k] * w + (ws.alpha[k] - ws.beta[k]) * d.dot(w) * d;
-    y[i] -= t;
-    y[j] += t;
-  }
+  system_springs(m.num_springs(), p.front().data(), m.spring_i.data(), m.spring_j.data(),
+                 ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.alpha.data(), ws.beta.data(),
+                 y.front().data());
   for (int i = 0; i < nn; ++i) y[i] = y[i].cwiseProduct(m.free_axes[i]);
 }
 
@@ -293,11 +338,29 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
         const double tension = -a * ws.load[k];
         ws.alpha[k] = h * h * kax + h * a * b * b * c;
         ws.beta[k] = h * h * std::max(0.0, tension / std::max(ws.length[k], 1e-300));
-        const Vec3 d = ws.dir(k);
-        const Mat3 blk = ws.beta[k] * Mat3::Identity() + (ws.alpha[k] - ws.beta[k]) * d * d.transpose();
-        ws.diag_inv[m.spring_i[k]] += blk;
-        ws.diag_inv[m.spring_j[k]] += blk;
       }
+    }
+    // Block diagonal: beta I + (alpha - beta) d d^T of every spring on both its nodes.
+    for (int k = 0; k < ns; ++k) {
+      const double ab = ws.alpha[k] - ws.beta[k], be = ws.beta[k];
+      const double x = ws.ux[k], y = ws.uy[k], z = ws.uz[k];
+      const double xx = be + ab * x * x, yy = be + ab * y * y, zz = be + ab * z * z;
+      const double xy = ab * x * y, xz = ab * x * z, yz = ab * y * z;
+      for (int node : {m.spring_i[k], m.spring_j[k]}) {
+        Mat3& D = ws.diag_inv[node];
+        D(0, 0) += xx;
+        D(1, 1) += yy;
+        D(2, 2) += zz;
+        D(0, 1) += xy;
+        D(0, 2) += xz;
+        D(1, 2) += yz;
+      }
+    }
+    for (int i = 0; i < nn; ++i) {
+      Mat3& D = ws.diag_inv[i];
+      D(1, 0) = D(0, 1);
+      D(2, 0) = D(0, 2);
+      D(2, 1) = D(1, 2);
     }
     // Fixed axes: identity rows and columns, then projected out again.
     for (int i = 0; i < nn; ++i) {
@@ -339,17 +402,14 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
       rz = rz_new;
       for (int i = 0; i < nn; ++i) ws.p[i] = ws.z[i] + beta * ws.p[i];
     }
-    // Line search: never make a spring shorter than its hard-stop length.
+    // Line search: never make a spring shorter than its hard-stop length (unless it was already
+    // and the step does not shorten it further).
     double step_len = 1.0;
     for (int tries = 0; tries < 12; ++tries) {
-      bool ok = true;
-      for (int k = 0; k < ns && ok; ++k) {
-        const int i = m.spring_i[k], j = m.spring_j[k];
-        const double l =
-            (s.x[j] + step_len * ws.dx[j] - s.x[i] - step_len * ws.dx[i]).norm();
-        ok = l >= ws.min_length[k] || l >= ws.length[k];
-      }
-      if (ok) break;
+      if (count_blocked(ns, s.x.front().data(), ws.dx.front().data(), step_len,
+                        m.spring_i.data(), m.spring_j.data(), ws.min_length2.data(),
+                        ws.length.data()) == 0)
+        break;
       step_len *= 0.5;
     }
     for (int i = 0; i < nn; ++i) s.x[i] += step_len * ws.dx[i];
