@@ -71,6 +71,12 @@ int main(int argc, char** argv) {
   std::int64_t worst_send_delay_ns = 0;
   std::string last_error;
 
+  // Legs of each round trip (same host, same CLOCK_MONOTONIC): scheduled -> server receive,
+  // server receive -> server reply, server reply -> client read.
+  std::vector<double> to_server, in_server, to_client;
+  to_server.reserve(n);
+  in_server.reserve(n);
+  to_client.reserve(n);
   ForceSample f;
   auto drain = [&](std::int64_t deadline_ns) {
     for (;;) {
@@ -79,7 +85,13 @@ int main(int argc, char** argv) {
       if (!got) return;
       const std::int64_t t = now_ns();
       if (k == ReplyKind::kForce && f.client_id == client_id) {
-        rec.on_reply(f.sequence, t);
+        if (rec.on_reply(f.sequence, t) && f.server_recv_time_ns > 0) {
+          const double sched = static_cast<double>(rec.scheduled_ns(f.sequence));
+          to_server.push_back((static_cast<double>(f.server_recv_time_ns) - sched) * 1e-3);
+          in_server.push_back((static_cast<double>(f.server_reply_time_ns) -
+                               static_cast<double>(f.server_recv_time_ns)) * 1e-3);
+          to_client.push_back((static_cast<double>(t) - static_cast<double>(f.server_reply_time_ns)) * 1e-3);
+        }
       } else if (k == ReplyKind::kError || k == ReplyKind::kMalformed) {
         ++errors;
         last_error = error;
@@ -118,6 +130,12 @@ int main(int argc, char** argv) {
               "send failures %zu, worst send delay %.1f us\n",
               rec.sent(), rec.received(), rec.lost(), rec.duplicates(), rec.unknown(), errors,
               send_failures, worst_send_delay_ns * 1e-3);
+  if (!to_server.empty()) {
+    const LatencySummary a = summarize(to_server), b = summarize(in_server), c = summarize(to_client);
+    std::printf("legs p50 / p99 (us): scheduled -> server recv %.1f / %.1f, in server %.1f / %.1f, "
+                "server reply -> client read %.1f / %.1f\n",
+                a.p50, a.p99, b.p50, b.p99, c.p50, c.p99);
+  }
   if (!last_error.empty()) std::printf("last server error: %s\n", last_error.c_str());
   std::uint32_t nodes = 0;
   if (have_after) {
@@ -151,6 +169,9 @@ int main(int argc, char** argv) {
     const std::string cmd = "/usr/bin/python3 '" + plot_script + "' --out '" + plot + "' '" + csv + "'";
     if (std::system(cmd.c_str()) != 0) std::cerr << "conica-latency: plotting failed: " << cmd << "\n";
   }
+  if (rec.received() == 0)
+    std::fprintf(stderr, "conica-latency: no replies from %s; is conica-server running there?\n",
+                 endpoint.c_str());
   std::printf("%s\n", summary_line(s, rec.lost(), rec.sent()).c_str());
   return rec.received() > 0 ? 0 : 2;
 }

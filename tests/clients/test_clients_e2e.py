@@ -1,0 +1,118 @@
+#!/usr/bin/python3
+"""End to end: conica-server --builtin cube on free ports, then conica-probe (press script),
+clients/python/probe.py and conica-latency --seconds 2 against it.
+
+Checks: the press recording has one reply per sample, the normal force is ~0 before contact and
+rises with depth (deeper thirds of the contact phase press harder), conica-latency ends with
+'p50_us=A p99_us=B p999_us=C max_us=D lost=E sent=F' with sent = 2000 and few lost replies."""
+import argparse
+import csv
+import os
+import re
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def free_ports(n):
+    socks, ports = [], []
+    for _ in range(n):
+        s = socket.socket()
+        s.bind(("127.0.0.1", 0))
+        socks.append(s)
+        ports.append(s.getsockname()[1])
+    for s in socks:
+        s.close()
+    return ports
+
+
+def check(cond, what):
+    if not cond:
+        print("FAIL:", what)
+        sys.exit(1)
+    print("ok:", what)
+
+
+def press_forces(path):
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    depth = [0.045 - float(r["z"]) for r in rows]  # builtin cube: top face + 5 mm probe radius
+    fn = [float(r["fz"]) for r in rows]            # -F . axis with axis -z
+    return rows, depth, fn
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--server", required=True)
+    ap.add_argument("--probe", required=True)
+    ap.add_argument("--latency", required=True)
+    ap.add_argument("--python-client", required=True)
+    ap.add_argument("--gen", required=True, help="generated Python protobuf modules")
+    args = ap.parse_args()
+    p, s, c = free_ports(3)
+    ep = lambda port: f"tcp://127.0.0.1:{port}"  # noqa: E731
+    tmp = tempfile.mkdtemp(prefix="conica-clients-")
+    server = subprocess.Popen([args.server, "--builtin", "cube", "--probe-endpoint", ep(p),
+                               "--state-endpoint", ep(s), "--control-endpoint", ep(c),
+                               "--seconds", "90"], stdout=subprocess.DEVNULL,
+                              stderr=open(os.path.join(tmp, "server.log"), "w"))
+    try:
+        time.sleep(1.0)
+        check(server.poll() is None, "server is running")
+
+        rec = os.path.join(tmp, "press.csv")
+        r = subprocess.run([args.probe, "--endpoint", ep(p), "--script", "press", "--depth", "0.006",
+                            "--approach", "0.004", "--speed", "0.02", "--hold", "0.1", "-o", rec],
+                           capture_output=True, text=True, timeout=60)
+        check(r.returncode == 0, f"conica-probe press exits 0 ({r.stderr.strip()})")
+        rows, depth, fn = press_forces(rec)
+        check(len(rows) == 601, f"one reply per sample (601 expected, got {len(rows)})")
+        before = [f for d, f in zip(depth, fn) if d < -0.001]
+        check(before and max(abs(f) for f in before) < 1e-9, "no force 1 mm above the surface")
+        inside = [(d, f) for d, f in zip(depth, fn) if f > 0]
+        check(len(inside) > 50, f"contact during the press ({len(inside)} samples)")
+        d0, d1 = inside[0][0], max(depth)
+        third = (d1 - d0) / 3
+        mean = lambda xs: sum(xs) / len(xs)  # noqa: E731
+        bands = [mean([f for d, f in inside if d0 + i * third <= d <= d0 + (i + 1) * third + 1e-12])
+                 for i in range(3)]
+        check(bands[0] < bands[1] < bands[2], f"force rises with depth (band means {bands} N)")
+
+        env = dict(os.environ, PYTHONPATH=args.gen)
+        pyrec = os.path.join(tmp, "py.csv")
+        r = subprocess.run(["/usr/bin/python3", args.python_client, "--endpoint", ep(p),
+                            "--steps", "200", "--hold", "20", "--out", pyrec],
+                           capture_output=True, text=True, timeout=60, env=env)
+        check(r.returncode == 0, f"probe.py exits 0 ({r.stderr.strip()})")
+        _, pdepth, pfn = press_forces(pyrec)
+        check(pfn[-1] > 0 and pfn[-1] > pfn[len(pfn) // 2 + 40] - 1e-12 and abs(pfn[0]) < 1e-12,
+              f"probe.py: force at full depth {pfn[-1]:.4f} N")
+
+        r = subprocess.run([args.latency, "--endpoint", ep(p), "--control-endpoint", ep(c),
+                            "--seconds", "2", "--csv", os.path.join(tmp, "lat.csv")],
+                           capture_output=True, text=True, timeout=60)
+        print(r.stdout)
+        check(r.returncode == 0, "conica-latency exits 0")
+        last = r.stdout.strip().splitlines()[-1]
+        m = re.fullmatch(r"p50_us=([\d.]+) p99_us=([\d.]+) p999_us=([\d.]+) max_us=([\d.]+) "
+                         r"lost=(\d+) sent=(\d+)", last)
+        check(m is not None, f"final line format: {last!r}")
+        p50, p99, p999, mx = (float(m.group(i)) for i in range(1, 5))
+        lost, sent = int(m.group(5)), int(m.group(6))
+        check(sent == 2000, "2000 updates sent at 1 kHz for 2 s")
+        check(0 < p50 <= p99 <= p999 <= mx, "percentiles ordered")
+        check(lost <= sent // 100, f"lost replies {lost} <= 1 %")
+        check("tick lateness" in r.stdout and "missed ticks" in r.stdout, "server loop statistics printed")
+    finally:
+        server.terminate()
+        try:
+            server.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            server.kill()
+    print("all end-to-end checks passed")
+
+
+if __name__ == "__main__":
+    main()
