@@ -185,8 +185,7 @@ int main(int argc, char** argv) {
 
   for (;;) {
     for (auto& run : runs)
-      if (!realtime && run.outstanding == 0) fetch(run);
-      else if (realtime) fetch(run);
+      if (realtime || run.outstanding == 0) fetch(run);
     bool pending = false, outstanding = false;
     for (auto& run : runs) {
       pending |= run.have_next;
