@@ -16,6 +16,8 @@ using Runner = std::function<int()>;
 void register_law(CLI::App& app, Runner* run);
 void register_mesh(CLI::App& app, Runner* run);
 void register_run(CLI::App& app, Runner* run);
+void register_compress(CLI::App& app, Runner* run);
+void register_calibrate(CLI::App& app, Runner* run);
 
 // Runs `/usr/bin/python3 scripts/NAME.py ARGS...` from the source tree to draw a figure.
 // Returns the exit status; prints why on failure.

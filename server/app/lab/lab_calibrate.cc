@@ -1,0 +1,146 @@
+// conica-lab calibrate: fits a scene's conical card to measured force-displacement curves (the
+// phantom CSV format: header lines, then columns `Compression (mm)`, `Load (N)`). Several files
+// are averaged on a common displacement grid. Prints progress; the last line is
+// `average relative error: X %` (full body when it ran, else the surrogate). Writes the fitted
+// card as a scene fragment.
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "app/lab/lab.h"
+#include "io/scene.h"
+#include "lab/calibration.h"
+
+namespace conica::lab {
+
+void register_calibrate(CLI::App& app, Runner* run) {
+  struct Opts {
+    std::vector<std::string> data;
+    std::string scene, out, curves, plot;
+    double max_strain = 0.5, skip_strain = 0.03, rate_mm_per_min = 500;
+    int points = 50, full_iterations = 3;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* cmd = app.add_subcommand(
+      "calibrate", "Fit a scene's conical spring card to measured force-displacement curves");
+  cmd->add_option("--scene", o->scene, "scene file (.pbtxt)")->required();
+  cmd->add_option("--data", o->data, "compression test CSV (repeat for several)")->required();
+  cmd->add_option("--max-strain", o->max_strain, "fit up to this strain")->capture_default_str();
+  cmd->add_option("--skip-strain", o->skip_strain,
+                  "leave grid points below this strain out of the error (seating toe)")
+      ->capture_default_str();
+  cmd->add_option("--points", o->points, "displacement grid points")->capture_default_str();
+  cmd->add_option("--full-iterations", o->full_iterations,
+                  "Levenberg-Marquardt iterations through the full body (0: verify only, "
+                  "-1: surrogate only)")
+      ->capture_default_str();
+  cmd->add_option("--rate-mm-per-min", o->rate_mm_per_min, "plate speed of the full-body runs")
+      ->capture_default_str();
+  cmd->add_option("--out", o->out, "write the fitted card here (scene fragment)")->required();
+  cmd->add_option("--curves", o->curves,
+                  "write displacement_mm,data_N,surrogate_N,full_N on the grid to this CSV");
+  cmd->add_option("--plot", o->plot, "draw data and model curves to this PNG (needs --curves)");
+  cmd->callback([o, run] {
+    *run = [o]() -> int {
+      BodySpec spec;
+      if (std::string e = io::load_scene(o->scene, &spec); !e.empty()) {
+        std::fprintf(stderr, "conica-lab calibrate: %s\n", e.c_str());
+        return 2;
+      }
+      ensure_top_plate(&spec);
+      std::vector<Curve> curves;
+      for (const std::string& path : o->data) {
+        std::ifstream in(path);
+        if (!in) {
+          std::fprintf(stderr, "conica-lab calibrate: cannot read %s\n", path.c_str());
+          return 2;
+        }
+        std::stringstream ss;
+        ss << in.rdbuf();
+        Curve c;
+        std::string err;
+        if (!parse_force_curve(ss.str(), &c, &err)) {
+          std::fprintf(stderr, "conica-lab calibrate: %s: %s\n", path.c_str(), err.c_str());
+          return 2;
+        }
+        curves.push_back(std::move(c));
+      }
+      FitOptions fo;
+      fo.max_strain = o->max_strain;
+      fo.skip_strain = o->skip_strain;
+      fo.points = o->points;
+      fo.full_iterations = o->full_iterations;
+      fo.rate = o->rate_mm_per_min * 1e-3 / 60;
+      fo.progress = [](const std::string& s) {
+        std::printf("%s\n", s.c_str());
+        std::fflush(stdout);
+      };
+      const FitResult r = calibrate(spec, curves, fo);
+      if (!r.error.empty()) {
+        std::fprintf(stderr, "conica-lab calibrate: %s\n", r.error.c_str());
+        return 2;
+      }
+      SpringCard card;
+      std::string name = "fitted";
+      for (const auto& g : spec.groups)
+        if (g.card.law == LawKind::kConical) {
+          card = g.card;
+          name = g.name;
+          break;
+        }
+      card.conical = r.card;
+      const ConicalLaw law(r.card);
+      char full[32] = "not run";
+      if (r.full_error >= 0) std::snprintf(full, sizeof full, "%.3f %%", 100 * r.full_error);
+      char head[512];
+      std::snprintf(head, sizeof head,
+                    "# Fitted by conica-lab calibrate to %zu curve(s) up to strain %g.\n"
+                    "# Identifiable shape: E_c = K0/L0 = %.6g Pa, taper D1/D2 = %.6g, "
+                    "stroke S/L0 = %.6g (K0 = %.6g N/m, S = %.6g m).\n"
+                    "# Average relative error (strain >= %g): surrogate %.3f %%, full body %s.\n",
+                    curves.size(), o->max_strain, r.shape.modulus, r.shape.taper,
+                    r.shape.stroke, law.k0(), law.stroke(), o->skip_strain,
+                    100 * r.surrogate_error, full);
+      std::ofstream out(o->out);
+      out << head << card_fragment(name, card);
+      if (!out) {
+        std::fprintf(stderr, "conica-lab calibrate: cannot write %s\n", o->out.c_str());
+        return 1;
+      }
+      std::printf("fitted card written to %s: G %.6g Pa, d %.6g m, D1 %.6g m, D2 %.6g m, L0 %.6g m, "
+                  "n_a %.6g\n",
+                  o->out.c_str(), r.card.G, r.card.d, r.card.D1, r.card.D2, r.card.L0, r.card.n_a);
+      if (!o->curves.empty()) {
+        std::ofstream cv(o->curves);
+        cv << "displacement_mm,data_N,surrogate_N,full_N\n";
+        char line[160];
+        for (size_t k = 0; k < r.grid.size(); ++k) {
+          std::snprintf(line, sizeof line, "%.6f,%.9g,%.9g,%.9g\n", r.grid[k] * 1e3, r.data[k],
+                        r.surrogate[k], r.full.empty() ? NAN : r.full[k]);
+          cv << line;
+        }
+        if (!cv) {
+          std::fprintf(stderr, "conica-lab calibrate: cannot write %s\n", o->curves.c_str());
+          return 1;
+        }
+      }
+      if (!o->plot.empty() && !o->curves.empty()) {
+        const int rc = run_plot_script(
+            "plot_curves", "--out '" + o->plot + "' --title 'Calibration: " + o->scene +
+                               "' --xlabel 'plate travel (mm)' --ylabel 'force (N)' --columns "
+                               "data_N,surrogate_N,full_N --labels 'measured (mean),cell "
+                               "surrogate,full body' '" + o->curves + "'");
+        if (rc != 0) return rc;
+      }
+      std::printf("average relative error: %.3f %%\n",
+                  100 * (r.full_error >= 0 ? r.full_error : r.surrogate_error));
+      return 0;
+    };
+  });
+}
+
+}  // namespace conica::lab

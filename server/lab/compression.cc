@@ -1,0 +1,210 @@
+#include "lab/compression.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "core/step.h"
+
+namespace conica::lab {
+namespace {
+
+// Spread of n.x over the rest nodes: {min, max}.
+std::pair<double, double> extent(const Model& m, const Vec3& n) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const Vec3& x : m.rest) {
+    lo = std::min(lo, n.dot(x));
+    hi = std::max(hi, n.dot(x));
+  }
+  return {lo, hi};
+}
+
+// Linear interpolation of y(x) at xq on ascending x; clamped at the ends.
+double interpolate(const std::vector<double>& x, const std::vector<double>& y, double xq) {
+  if (xq <= x.front()) return y.front();
+  if (xq >= x.back()) return y.back();
+  const auto it = std::upper_bound(x.begin(), x.end(), xq);
+  const size_t j = static_cast<size_t>(it - x.begin());
+  const double t = (xq - x[j - 1]) / (x[j] - x[j - 1]);
+  return y[j - 1] + t * (y[j] - y[j - 1]);
+}
+
+}  // namespace
+
+bool ensure_top_plate(BodySpec* spec) {
+  if (!spec->planes.empty()) return false;
+  double top = -std::numeric_limits<double>::infinity();
+  for (const Vec3& x : spec->mesh.nodes) top = std::max(top, x.z());
+  PlaneSpec p;
+  p.normal = -Vec3::UnitZ();
+  p.offset = -top;  // {-z >= -top}: below the top
+  spec->planes.push_back(p);
+  return true;
+}
+
+double plate_height(const Model& model) {
+  const auto [lo, hi] = extent(model, model.planes.at(0).normal);
+  return hi - lo;
+}
+
+double cross_section(const Model& model) {
+  Mesh mesh;
+  mesh.nodes = model.rest;
+  double v = 0;
+  for (const auto& h : model.hexahedra) v += std::abs(hex_volume(mesh, h));
+  for (const auto& t : model.tetrahedra)
+    v += std::abs(tet_volume(model.rest[t[0]], model.rest[t[1]], model.rest[t[2]], model.rest[t[3]]));
+  return v / plate_height(model);
+}
+
+Curve compression_curve(const Model& model, double rate, double to_strain, int samples,
+                        CompressionStats* stats) {
+  Model m = model;
+  PlaneSpec& plate = m.planes.at(0);
+  const Vec3 n = plate.normal;
+  const auto [lo, hi] = extent(m, n);
+  const double travel = to_strain * (hi - lo);
+
+  // A rigid plate: penalty well above the springs' axial stiffness.
+  double k_mean = 0;
+  for (const SpringGroup& g : m.groups) {
+    const double k0 = g.card.k0();
+    for (int k = g.begin; k < g.end; ++k) k_mean += m.force_scale[k] * m.deflection_scale[k] * k0;
+  }
+  k_mean /= std::max(1, m.num_springs());
+  double k_plate = 1e4 * k_mean;
+  if (m.options.integrator != Integrator::kImplicitEuler) {
+    // Explicit steps: the penalty must keep omega h <= 1 on the lightest node it touches.
+    double m_min = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < m.num_nodes(); ++i)
+      if (m.mass[i] > 0) m_min = std::min(m_min, m.mass[i]);
+    const double h = m.options.dt / m.options.substeps;
+    k_plate = std::min(k_plate, m_min / (h * h));
+  }
+  plate.stiffness = std::max(plate.stiffness, k_plate);
+
+  State s = make_state(m);
+  s.planes[0].offset = lo;  // touching the body's top
+  Workspace ws(m);
+  const double dt = m.options.dt;
+  const long steps = std::max(1L, static_cast<long>(std::ceil(travel / (rate * dt) - 1e-9)));
+  std::vector<double> u(steps + 1, 0.0), f(steps + 1, 0.0);
+  double max_pen = 0, step_time = 0;
+  for (long k = 1; k <= steps; ++k) {
+    s.planes[0].offset = lo + std::min(travel, rate * dt * static_cast<double>(k));
+    const auto t0 = std::chrono::steady_clock::now();
+    step(m, s, ws);
+    step_time += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    compute_forces(m, s, ws);  // the reaction at the end-of-step positions
+    u[k] = s.planes[0].offset - lo;
+    f[k] = -n.dot(s.planes[0].force);
+    for (const Vec3& x : s.x) max_pen = std::max(max_pen, s.planes[0].offset - n.dot(x));
+  }
+  Curve out(samples + 1);
+  for (int i = 0; i <= samples; ++i) {
+    out[i].displacement = travel * i / samples;
+    out[i].force = interpolate(u, f, out[i].displacement);
+  }
+  if (stats) {
+    stats->steps = steps;
+    stats->dt = dt;
+    stats->plate_stiffness = plate.stiffness;
+    stats->max_penetration = max_pen;
+    stats->rollbacks = s.counters.rollbacks;
+    stats->hard_stops = s.counters.hard_stops;
+    stats->step_seconds = step_time / static_cast<double>(steps);
+  }
+  return out;
+}
+
+std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
+                               double side, Model* cell) {
+  BodySpec spec;
+  spec.mesh = make_box_lattice(Vec3(side, side, side), {1, 1, 1});
+  spec.density = 1000;
+  spec.groups = groups;
+  for (auto& g : spec.groups) {
+    if (!g.regions.empty()) return "spring group \"" + g.name + "\" selects regions: no cell model";
+    g.card.damping = 0;  // quasi-static: no rate effects
+    g.card.maxwell_k = 0;
+    g.card.maxwell_tau = 0;
+  }
+  spec.mapping = mapping;
+  SolverOptions& o = spec.options;
+  o.integrator = Integrator::kImplicitEuler;
+  o.dt = 1.0;  // long step: each implicit step is a Newton step on the static equilibrium
+  o.newton_iterations = 1;
+  o.cg_iterations = 100;
+  o.cg_tolerance = 1e-13;
+  o.mass_damping = 0;
+  o.max_speed = 1e9;
+  FixedSelector base, top, pin, pin2;
+  base.kind = top.kind = FixedSelector::Kind::kPlane;
+  base.offset = 0;
+  top.offset = side;
+  base.tolerance = top.tolerance = 1e-9 * side;
+  base.axes = top.axes = 4;  // z
+  // Nodes 0 (0,0,0), 4 (0,0,s) held in x, y; 1 (s,0,0), 5 (s,0,s) in y: no rigid motion, and the
+  // plates neither slide nor turn against each other.
+  pin.kind = pin2.kind = FixedSelector::Kind::kNodes;
+  pin.nodes = {0, 4};
+  pin.axes = 3;
+  pin2.nodes = {1, 5};
+  pin2.axes = 2;
+  spec.fixed = {base, top, pin, pin2};
+  return build_model(spec, cell);
+}
+
+std::vector<double> cell_stress_curve(const Model& cell, const std::vector<double>& strains) {
+  State s = make_state(cell);
+  Workspace ws(cell);
+  Vec3 lo = cell.rest[0], hi = cell.rest[0];
+  for (const Vec3& x : cell.rest) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  const Vec3 size = hi - lo;
+  std::vector<int> top, right;
+  for (int i = 0; i < cell.num_nodes(); ++i) {
+    if (cell.rest[i].z() > hi.z() - 1e-9 * size.z()) top.push_back(i);
+    if (cell.rest[i].x() > hi.x() - 1e-9 * size.x()) right.push_back(i);
+  }
+  // Affine map diag(lambda, lambda, 1 - e) about the min corner: the face forces are the
+  // tractions. Returns the x-force on the right face and the z-force on the top face.
+  auto faces = [&](double lambda, double e, double* fx, double* fz) {
+    for (int i = 0; i < cell.num_nodes(); ++i) {
+      const Vec3 X = cell.rest[i] - lo;
+      s.x[i] = lo + Vec3(lambda * X.x(), lambda * X.y(), (1 - e) * X.z());
+    }
+    compute_forces(cell, s, ws);
+    *fx = 0;
+    *fz = 0;
+    for (int i : right) *fx += ws.force[i].x();
+    for (int i : top) *fz += ws.force[i].z();
+  };
+  std::vector<double> out;
+  out.reserve(strains.size());
+  double lambda = 1;
+  for (double e : strains) {
+    // Lateral stretch with zero lateral traction: secant iterations from the last solution.
+    double l0 = lambda, l1 = lambda * (1 + 1e-4), fz = 0, g0, g1;
+    faces(l0, e, &g0, &fz);
+    for (int it = 0; it < 60 && g0 != 0; ++it) {
+      faces(l1, e, &g1, &fz);
+      if (g1 == g0) break;
+      const double l2 = std::clamp(l1 - g1 * (l1 - l0) / (g1 - g0), 0.5 * l1, 2 * l1);
+      l0 = l1;
+      g0 = g1;
+      l1 = l2;
+      if (std::abs(l1 - l0) <= 1e-13 * l1) break;
+    }
+    lambda = l1;
+    double gx;
+    faces(lambda, e, &gx, &fz);
+    out.push_back(fz / (size.x() * size.y()));
+  }
+  return out;
+}
+
+}  // namespace conica::lab

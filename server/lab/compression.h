@@ -1,0 +1,76 @@
+// Compression experiments on a body: the unconfined uniaxial compression test of the Ecoflex
+// phantoms (shared/data/phantoms) run on a model. Core only: no I/O, no logging.
+//
+// Two ways to compress:
+//  - compression_curve: the body between rigid plates, the top plate (the model's plane 0) moved
+//    at a constant rate with the model's own integrator and time step, force read from the
+//    plate. This is the experiment as it happens, with inertia, damping and contact penalties.
+//  - cell_stress_curve: the homogenised (Cauchy-Born) uniaxial stress of the lattice: one cell
+//    deformed affinely, diag(lambda, lambda, 1 - e), lambda such that the lateral traction is
+//    zero. A hexahedral lattice is a Bravais lattice (every node sees the same neighbourhood), so
+//    the affine deformation is an equilibrium of a box between frictionless plates at any strain,
+//    and the body's force is this stress times its cross-section, as long as the homogeneous
+//    state is stable. A surrogate that costs microseconds, used by the calibration.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/body.h"
+#include "core/model.h"
+
+namespace conica::lab {
+
+// One point of a force-displacement curve.
+struct CurvePoint {
+  double displacement = 0;  // m, plate travel from first contact, compression positive
+  double force = 0;         // N, on the plate, compression positive
+};
+using Curve = std::vector<CurvePoint>;
+
+// Adds a top plate touching the body's highest node (normal -z) when `spec` has no plane.
+// Returns true when it added one.
+bool ensure_top_plate(BodySpec* spec);
+
+// Height of the body along plane 0's normal (m): the spread of n.x over the rest nodes.
+// Precondition: the model has a plane.
+double plate_height(const Model& model);
+
+// Rest volume of the body's elements over plate_height (m^2): the mean cross-section.
+double cross_section(const Model& model);
+
+struct CompressionStats {
+  long steps = 0;                 // steps taken
+  double dt = 0;                  // s, per step
+  double plate_stiffness = 0;     // N/m per node, as used
+  double max_penetration = 0;     // m, deepest node behind the moving plate at a sample
+  std::uint64_t rollbacks = 0;    // guard trips (should be 0)
+  std::uint64_t hard_stops = 0;
+  double step_seconds = 0;        // s, mean wall time of step() alone
+};
+
+// Moves plane 0 of `model` from the body's top (first contact) into the body at `rate` (m/s)
+// until the plate has travelled to_strain * plate_height, stepping with the model's integrator
+// at its own time step. Returns samples + 1 points at equal plate travel (the first at 0),
+// force = -n . (force on the plate), linearly interpolated between steps.
+// A plate penalty below 1e4 times the mean axial spring stiffness is raised to it (the scene
+// default is sized for explicit stability, far too soft to act as a rigid plate), for explicit
+// integrators no further than omega h = 1 on the lightest node: the plate then penetrates the
+// body by a fraction of its travel, reported in stats (small with the implicit solver).
+// Precondition: the model has a plane; rate > 0; 0 < to_strain < 1; samples >= 1.
+Curve compression_curve(const Model& model, double rate, double to_strain, int samples,
+                        CompressionStats* stats = nullptr);
+
+// The lattice cell of `groups` (a 1 x 1 x 1 hexahedron of side `side`, all 28 springs, the
+// given mapping), its base held along z, one corner pinned against rigid motion.
+// Returns the build error, empty on success.
+std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
+                               double side, Model* cell);
+
+// Homogenised engineering stress (Pa, compression positive, over the rest cross-section) of the
+// cell at each compressive engineering strain in `strains` (ascending, each in [0, 1)): the cell
+// deformed affinely, the lateral stretch solved (secant) for zero lateral traction. Assumes the
+// cell's spring groups respect the cubic symmetry in x and y (true for one card).
+std::vector<double> cell_stress_curve(const Model& cell, const std::vector<double>& strains);
+
+}  // namespace conica::lab

@@ -1,0 +1,126 @@
+// Compression experiments: a linear lattice cube against the analytic stiffness of its lattice,
+// and the homogenised cell surrogate against the full body between plates.
+#include "lab/compression.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include <cmath>
+
+namespace conica::lab {
+namespace {
+
+SpringCard Hooke(double k, double L) {
+  SpringCard c;
+  c.law = LawKind::kHooke;
+  c.hooke_k = k;
+  c.hooke_length = L;
+  return c;
+}
+
+// A cube of side H and cells^3 hexahedra between frictionless plates: base held along z, two
+// base nodes pinned against rigid motion, a top plate from ensure_top_plate. Implicit solver.
+BodySpec CubeSpec(const SpringCard& card, int cells, double H) {
+  BodySpec s;
+  s.mesh = make_box_lattice(Vec3(H, H, H), {cells, cells, cells});
+  s.density = 1000;
+  s.groups.push_back({"all", card, kAllFamilies, {}, Vec3::Zero(), 10});
+  FixedSelector base, pin, pin2;
+  base.kind = FixedSelector::Kind::kPlane;
+  base.offset = 0;
+  base.axes = 4;
+  pin.kind = pin2.kind = FixedSelector::Kind::kNodes;
+  pin.nodes = {0};
+  pin.axes = 3;
+  pin2.nodes = {cells};
+  pin2.axes = 2;
+  s.fixed = {base, pin, pin2};
+  s.options.integrator = Integrator::kImplicitEuler;
+  s.options.dt = 0.01;
+  s.options.newton_iterations = 3;
+  s.options.cg_iterations = 200;
+  s.options.cg_tolerance = 1e-10;
+  s.options.mass_damping = 20;
+  EXPECT_TRUE(ensure_top_plate(&s));
+  return s;
+}
+
+// Uniaxial modulus of the hex lattice with edge, face-diagonal and body-diagonal springs by
+// homogenisation. Under the strain mapping a spring of rest length l0 and volume share V/28 (each
+// cell gives each of its 28 springs 1/28 of its volume) has axial stiffness
+// k_s = (V / (28 l0 L^2)) K (L / l0), so k_s l0^2 = V K / (28 L) and the stiffness tensor
+// (Cauchy-Born, pair springs) is C_ijkl = (1/V) sum_s k_s l0^2 d_i d_j d_k d_l
+//                                      = K / (28 L) sum over the 28 directions of d_i d_j d_k d_l.
+// With lateral contraction free, E_z = 1 / S_zzzz, S = C^-1 in Voigt form.
+double LatticeYoungZ(double K, double L) {
+  std::vector<Vec3> dirs;
+  for (int i = 0; i < 8; ++i)
+    for (int j = i + 1; j < 8; ++j) {
+      const Vec3 a(i & 1, (i >> 1) & 1, (i >> 2) & 1), b(j & 1, (j >> 1) & 1, (j >> 2) & 1);
+      dirs.push_back((b - a).normalized());
+    }
+  EXPECT_EQ(dirs.size(), 28u);
+  const int vi[6] = {0, 1, 2, 1, 0, 0}, vj[6] = {0, 1, 2, 2, 2, 1};
+  Eigen::Matrix<double, 6, 6> C = Eigen::Matrix<double, 6, 6>::Zero();
+  for (const Vec3& d : dirs)
+    for (int p = 0; p < 6; ++p)
+      for (int q = 0; q < 6; ++q) C(p, q) += d[vi[p]] * d[vj[p]] * d[vi[q]] * d[vj[q]];
+  C *= K / (28 * L);
+  // Voigt compliance: S = C^-1 (engineering shear strains); S(2,2) is S_zzzz.
+  const Eigen::Matrix<double, 6, 6> S = C.inverse();
+  return 1.0 / S(2, 2);
+}
+
+TEST(CompressionTest, HookeCubeMatchesAnalyticLatticeModulus) {
+  const double K = 100, L = 0.01, H = 0.02;
+  // Cubic symmetry gives C11 = 58/9, C12 = C44 = 13/9 (x K / (28 L)), so
+  // E = (C11 - C12)(C11 + 2 C12) / (C11 + C12) = 3780/639 K / (28 L) = 0.21127 K / L.
+  const double E = LatticeYoungZ(K, L);
+  EXPECT_NEAR(E, 3780.0 / 639 / 28 * K / L, 1e-9 * E);
+  Model m;
+  ASSERT_EQ(build_model(CubeSpec(Hooke(K, L), 4, H), &m), "");
+  const double strain = 0.01, rate = 0.2e-3;  // 0.2 mm/s: 1 s of compression
+  CompressionStats st;
+  const Curve c = compression_curve(m, rate, strain, 10, &st);
+  EXPECT_EQ(st.rollbacks, 0u);
+  EXPECT_LT(st.max_penetration, 1e-3 * strain * H);
+  const double E_sim = c.back().force / (H * H) / strain;
+  EXPECT_NEAR(E_sim / E, 1.0, 0.01) << "simulated " << E_sim << " Pa, lattice " << E << " Pa";
+  // Halfway the curve is linear.
+  EXPECT_NEAR(c[5].force / c.back().force, 0.5, 0.01);
+}
+
+TEST(CompressionTest, CellSurrogateMatchesFullBodyWhileHomogeneous) {
+  SpringCard card;
+  card.law = LawKind::kConical;
+  card.conical = ConicalCard{2e8, 1.2e-3, 2e-3, 8e-3, 10e-3, 3};  // Type I, stroke 0.8 L0
+  card.stiffness_cap = 1000;
+  const double H = 0.02;
+  Model body, cell;
+  const BodySpec spec = CubeSpec(card, 3, H);
+  ASSERT_EQ(build_model(spec, &body), "");
+  ASSERT_EQ(make_uniaxial_cell(spec.groups, Mapping::kStrain, 0.01, &cell), "");
+  const double strain = 0.15;
+  const Curve c = compression_curve(body, 1e-3, strain, 5);
+  const std::vector<double> sigma = cell_stress_curve(cell, {0.03, 0.06, 0.09, 0.12, 0.15});
+  for (int i = 1; i <= 5; ++i)
+    EXPECT_NEAR(c[i].force / (sigma[i - 1] * H * H), 1.0, 0.02) << "strain " << 0.03 * i;
+  // Small-strain cell modulus is the lattice's.
+  const ConicalLaw law(card.conical);
+  const std::vector<double> s0 = cell_stress_curve(cell, {1e-5});
+  EXPECT_NEAR(s0[0] / 1e-5 / LatticeYoungZ(law.k0(), card.conical.L0), 1.0, 1e-3);
+}
+
+TEST(CompressionTest, AddsATopPlateOnlyWhenNone) {
+  BodySpec s;
+  s.mesh = make_box_lattice(Vec3(0.01, 0.01, 0.03), {1, 1, 3});
+  EXPECT_TRUE(ensure_top_plate(&s));
+  ASSERT_EQ(s.planes.size(), 1u);
+  EXPECT_NEAR(s.planes[0].normal.z(), -1, 0);
+  EXPECT_NEAR(s.planes[0].offset, -0.03, 1e-15);
+  EXPECT_FALSE(ensure_top_plate(&s));
+}
+
+}  // namespace
+}  // namespace conica::lab
