@@ -3,6 +3,7 @@
 (default: the second column). One curve per file and column, labelled in that order.
 
 Example: plot_curves.py --out fig.png --columns data_N,full_N --labels data,model fit.csv
+A file given as PATH::COL1,COL2 takes its own columns.
 """
 import argparse
 import csv
@@ -30,11 +31,12 @@ def main() -> None:
     styles = a.styles.split(",") if a.styles else []
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     n = 0
-    for path in a.csv:
+    for arg in a.csv:
+        path, _, own = arg.partition("::")
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
         head, body = rows[0], rows[1:]
-        cols = a.columns.split(",") if a.columns else [head[1]]
+        cols = (own or a.columns).split(",") if (own or a.columns) else [head[1]]
         x = [float(r[0]) for r in body]
         for c in cols:
             j = head.index(c)
