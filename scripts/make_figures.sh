@@ -35,8 +35,14 @@ fi
 # 2. the viewer: server + bridge + headless Chromium, screenshot during a scripted press
 if [[ -x "$BIN/conica-server" && -x "$BIN/conica-probe" && -d "$BUILD/proto/gen" ]]; then
   echo "== viewer screenshot"
+  # the liver of the paper's Figure 15 when its mesh is there, pressed from the top; else the cube
+  liver_args=""
+  if [[ -f ../shared/data/meshes/liver2.msh ]]; then
+    liver_args="--scene configs/liver.pbtxt --at -0.0485,0.0716,-0.0093 --axis -y --depth 0.01"
+    liver_args+=" --probe-radius 0.01 --up y"
+  fi
   set +e
-  UPDATE_FIGURES=1 tests/viewer/run_viewer_test.sh "$BIN/conica-server" "$BIN/conica-probe" \
+  VIEWER_TEST_ARGS="$liver_args" UPDATE_FIGURES=1 tests/viewer/run_viewer_test.sh "$BIN/conica-server" "$BIN/conica-probe" \
     "$BUILD/proto/gen" "$FIG/viewer.png"
   rc=$?
   set -e

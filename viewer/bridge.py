@@ -231,10 +231,12 @@ class Bridge:
             n, tris = reply.num_nodes, reply.triangles
             rest = struct.pack(f"<{3 * n}f", *reply.rest_positions)
             tri = struct.pack(f"<{len(tris)}I", *tris)
-            self.hub.mesh_id += 1
-            self.hub.mesh = struct.pack("<IIII", MESH, n, len(tris) // 3, self.hub.mesh_id) + rest + tri
             self.mesh_nodes = n
             self.mesh_wanted.clear()
+            if self.hub.mesh is not None and self.hub.mesh[16:] == rest + tri:
+                continue  # the same body (a restarted or resumed server): clients keep theirs
+            self.hub.mesh_id += 1
+            self.hub.mesh = struct.pack("<IIII", MESH, n, len(tris) // 3, self.hub.mesh_id) + rest + tri
             print(f"bridge: mesh {n} nodes, {len(tris) // 3} surface triangles", file=sys.stderr,
                   flush=True)
             self.hub.publish()

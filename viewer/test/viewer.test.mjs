@@ -164,6 +164,8 @@ async function main() {
       await sleep(50);
     }
     const code = await Promise.race([probe.exited, sleep(10000).then(() => 'timeout')]);
+    await sleep(500);  // the last frames of the hold reach the page
+    peak = Math.max(peak, await page.evaluate(() => window.conica.peakDisplacement));
     check(code === 0, `conica-probe press exits 0 (${code})`);
     check(contactSeen, 'the page saw the probe in contact');
     check(peak > 0 && peak > rest + 1e-4,
@@ -172,7 +174,7 @@ async function main() {
     check(shot || !args.screenshot, 'screenshot taken during the press');
     const s2 = await page.evaluate(() => ({ ...window.conica }));
     check(s2.framesApplied <= s2.framesReceived, 'never shows more frames than received');
-    log(`frames received ${s2.framesReceived}, shown ${s2.framesApplied}, dropped ${s2.framesDropped}, `
+    log(`meshes ${s2.meshes}, peak ${(s2.peakDisplacement * 1e3).toFixed(3)} mm, now ${(s2.maxDisplacement * 1e3).toFixed(3)} mm; frames received ${s2.framesReceived}, shown ${s2.framesApplied}, dropped ${s2.framesDropped}, `
       + `apply ${s2.applyMs.toFixed(2)} ms, display ${s2.fps.toFixed(0)} fps`);
     check(errors.length === 0, `no page errors${errors.length ? ': ' + errors.join(' | ') : ''}`);
   } finally {
