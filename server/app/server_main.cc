@@ -2,6 +2,9 @@
 //   conica-server                       built-in cube on the default loopback endpoints
 //   conica-server --scene FILE          a scene file
 //   conica-server --builtin liver --probe-endpoint tcp://127.0.0.1:6000 --seconds 10
+//   conica-server --generate-keys keys --key-name server      keys/server.key, keys/server.pub
+//   conica-server --curve-server-key keys/server.key --curve-clients keys/clients
+//                                       CURVE: encrypted, only clients with a key in keys/clients
 #include <signal.h>
 #include <spdlog/spdlog.h>
 #include <time.h>
@@ -13,6 +16,7 @@
 #include <zmq.hpp>
 
 #include "net/builtin_scenes.h"
+#include "net/curve.h"
 #include "net/server.h"
 
 #if defined(CONICA_HAVE_SCENE)
@@ -55,11 +59,49 @@ int main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
   app.add_flag("--no-realtime", no_realtime, "do not try SCHED_FIFO and mlockall");
+  std::string curve_key, curve_clients, generate_dir, key_name = "server";
+  app.add_option("--curve-server-key", curve_key,
+                 "CURVE: the server's key file (public + secret, from --generate-keys)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--curve-clients", curve_clients,
+                 "CURVE: folder of authorised client public keys, one NAME.pub per client")
+      ->check(CLI::ExistingDirectory);
+  app.add_option("--generate-keys", generate_dir,
+                 "write a new CURVE key pair DIR/NAME.key (private) and DIR/NAME.pub, then exit");
+  app.add_option("--key-name", key_name, "file name of --generate-keys (default: server)");
+  app.get_option("--curve-server-key")->needs("--curve-clients");
+  app.get_option("--curve-clients")->needs("--curve-server-key");
   app.get_option("--scene")->excludes("--builtin");
   CLI11_PARSE(app, argc, argv);
 
   spdlog::set_level(spdlog::level::from_str(log_level));
   opt.realtime = !no_realtime;
+
+  if (!generate_dir.empty()) {
+    conica::net::CurveKeyPair kp;
+    std::string e = conica::net::generate_keypair(&kp);
+    if (e.empty()) e = conica::net::write_keypair(generate_dir, key_name, kp);
+    if (!e.empty()) {
+      spdlog::error("{}", e);
+      return 1;
+    }
+    std::printf("%s/%s.key (keep private)\n%s/%s.pub public %s\n", generate_dir.c_str(),
+                key_name.c_str(), generate_dir.c_str(), key_name.c_str(), kp.public_key.c_str());
+    return 0;
+  }
+  if (!curve_key.empty()) {
+    conica::net::CurveKeyPair kp;
+    std::string e = conica::net::read_key_file(curve_key, &kp);
+    if (e.empty() && kp.secret_key.empty()) e = curve_key + ": no secret key (give the .key file)";
+    if (e.empty()) e = conica::net::read_client_keys(curve_clients, &opt.curve_client_keys);
+    if (!e.empty()) {
+      spdlog::error("{}", e);
+      return 1;
+    }
+    opt.curve_secret_key = kp.secret_key;
+    spdlog::info("CURVE: server key {}, {} authorised client keys", kp.public_key,
+                 opt.curve_client_keys.size());
+  }
   opt.scene_loader = load_scene_file;
 
   // Signals are handled by this thread alone (sigtimedwait below): block them before any other

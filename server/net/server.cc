@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/step.h"
+#include "net/curve.h"
 #include "net/loop_stats.h"
 #include "net/probe_contact.h"
 
@@ -110,7 +111,10 @@ struct Server::Loop {
   // ---- setup ------------------------------------------------------------------------------
 
   std::string bind_all() {
-    auto common = [&](zmq::socket_t& s) { s.set(zmq::sockopt::linger, 0); };
+    auto common = [&](zmq::socket_t& s) {
+      s.set(zmq::sockopt::linger, 0);
+      if (!opt.curve_secret_key.empty()) set_curve_server(s, opt.curve_secret_key);
+    };
     try {
       probe = zmq::socket_t(srv.context_, zmq::socket_type::router);
       pub = zmq::socket_t(srv.context_, zmq::socket_type::pub);
@@ -130,7 +134,10 @@ struct Server::Loop {
       for (int k = 0; k < 3; ++k) {
         const std::string& e = *binds[k].second;
         if (!is_loopback(e))
-          spdlog::warn("binding {} on a non-loopback address: reachable from other machines", e);
+          spdlog::warn("binding {} on a non-loopback address: reachable from other machines{}", e,
+                       opt.curve_secret_key.empty()
+                           ? ", unauthenticated and unencrypted (see --curve-server-key)"
+                           : " (CURVE: listed clients only)");
         try {
           binds[k].first->bind(e);
         } catch (const zmq::error_t& err) {
@@ -576,6 +583,19 @@ std::string Server::start() {
   if (running()) return "already running";
   if (!model_) return "no scene loaded";
   if (!(options_.rate_hz > 0) || !std::isfinite(options_.rate_hz)) return "rate_hz must be > 0";
+  if (!options_.curve_secret_key.empty()) {
+    if (!curve_available()) return "CURVE requested but this libzmq has no CURVE support";
+    if (!valid_z85_key(options_.curve_secret_key)) return "CURVE secret key is not a z85 key";
+    if (options_.curve_client_keys.empty()) return "CURVE needs at least one client public key";
+    for (const std::string& k : options_.curve_client_keys)
+      if (!valid_z85_key(k)) return "CURVE client key is not a z85 key: " + k;
+    // The handler must be bound before the sockets: without one libzmq accepts every client.
+    zap_ = std::make_unique<ZapHandler>(context_, options_.curve_client_keys);
+    if (std::string e = zap_->start(); !e.empty()) {
+      zap_.reset();
+      return e;
+    }
+  }
   stop_.store(false);
   std::promise<std::string> bound;
   std::future<std::string> result = bound.get_future();
@@ -593,11 +613,14 @@ std::string Server::start() {
   std::string e = result.get();
   if (!e.empty()) {
     thread_.join();
+    if (zap_) zap_->stop();
     return e;
   }
   const Endpoints ep = endpoints();
-  spdlog::info("serving: probes {}, state {}, control {} at {} Hz", ep.probe, ep.state, ep.control,
-               options_.rate_hz);
+  spdlog::info("serving: probes {}, state {}, control {} at {} Hz{}", ep.probe, ep.state,
+               ep.control, options_.rate_hz,
+               zap_ ? fmt::format(", CURVE with {} client keys", options_.curve_client_keys.size())
+                    : std::string());
   return {};
 }
 
@@ -605,6 +628,10 @@ void Server::stop() {
   if (!thread_.joinable()) return;
   stop_.store(true);
   thread_.join();
+  if (zap_) zap_->stop();  // after the sockets are closed
 }
+
+std::uint64_t Server::curve_refused() const { return zap_ ? zap_->refused() : 0; }
+std::uint64_t Server::curve_accepted() const { return zap_ ? zap_->accepted() : 0; }
 
 }  // namespace conica::net

@@ -25,6 +25,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 #include <zmq.hpp>
 
 #include "core/body.h"
@@ -32,6 +33,8 @@
 #include "net/codec.h"
 
 namespace conica::net {
+
+class ZapHandler;
 
 struct ServerOptions {
   std::string probe_endpoint = "tcp://127.0.0.1:5555";
@@ -48,6 +51,11 @@ struct ServerOptions {
   bool refuse_slow_scene = true;  // refuse a scene whose median step cost exceeds the period
   // LOAD_SCENE: path -> spec; returns an error message (empty on success). Unset: refused.
   std::function<std::string(const std::string&, BodySpec*)> scene_loader;
+  // CURVE (net/curve.h): the server's z85 secret key and the z85 public keys of the clients it
+  // accepts. Empty secret: plain ZeroMQ. Set: all three sockets encrypt, and a client whose key
+  // is not listed is refused at the handshake (counted in curve_refused(), logged).
+  std::string curve_secret_key;
+  std::vector<std::string> curve_client_keys;
 };
 
 // Resolved endpoints (with the ports the OS picked for "tcp://host:*").
@@ -77,6 +85,9 @@ class Server {
   LoopStatsData stats() const;
   // Median and maximum step cost measured at the last load, us.
   double measured_step_us() const { return measured_step_us_; }
+  // CURVE handshakes refused and accepted since start() (0 without CURVE).
+  std::uint64_t curve_refused() const;
+  std::uint64_t curve_accepted() const;
   // The current model (valid until the next load; do not call while LOAD_SCENE may run).
   const Model& model() const;
 
@@ -89,6 +100,7 @@ class Server {
   ServerOptions options_;
   std::unique_ptr<Model> model_;
   double measured_step_us_ = 0;
+  std::unique_ptr<ZapHandler> zap_;  // CURVE only; bound before the sockets, closed after them
   std::thread thread_;
   std::atomic<bool> stop_{false};
   mutable std::mutex mutex_;  // guards endpoints_ and stats_
