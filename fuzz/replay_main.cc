@@ -1,6 +1,7 @@
 // Runs a fuzz target's entry point on files, without libFuzzer: how the regression inputs in
 // tests/data/fuzz-regressions/<target>/ and the seed corpora are replayed by CTest with any
-// compiler.   replay FILE_OR_DIR...   (exit 0 when every input ran; a crash is a failure)
+// compiler.   replay FILE_OR_DIR...   (exit 0 when every input ran; a crash is a failure;
+// a path that does not exist is skipped)
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
@@ -31,6 +32,10 @@ int main(int argc, char** argv) {
   int inputs = 0, failures = 0;
   for (int a = 1; a < argc; ++a) {
     const std::filesystem::path arg(argv[a]);
+    if (!std::filesystem::exists(arg)) {
+      std::printf("replay: %s does not exist (no inputs there yet)\n", arg.c_str());
+      continue;
+    }
     if (std::filesystem::is_directory(arg)) {
       std::vector<std::filesystem::path> files;
       for (const auto& e : std::filesystem::recursive_directory_iterator(arg))

@@ -189,7 +189,7 @@ void read_attribute(Tokens& t, std::string_view keyword, std::int64_t n, bool ce
       double x = 0;
       if (!parse_double(v, &x)) in.fail("scalar value '" + std::string(v) + "' is not a number");
       integral = x == std::floor(x) && std::abs(x) < 2e9;
-      values.push_back(static_cast<std::int64_t>(x));
+      if (integral) values.push_back(static_cast<std::int64_t>(x));  // 1e99 -> int64 is UB
     }
     if (keep && integral) {
       *regions = std::move(values);
