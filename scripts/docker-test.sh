@@ -208,6 +208,7 @@ if [[ ${CONICA_DOCKER_COMPOSE:-0} == 1 ]]; then
   compose=(podman-compose -p conica-test -f docker/compose.yaml)
   timeout 120 "${compose[@]}" up --no-build --abort-on-container-exit >"$WORK/compose.log" 2>&1 || true
   timeout 60 "${compose[@]}" down >/dev/null 2>&1 || true
+  podman network rm conica-test_default >/dev/null 2>&1 || true  # podman-compose 1.0 leaves it
   grep -q -E 'max \|F\| [0-9.]*[1-9]' "$WORK/compose.log" ||
     { tail -n 30 "$WORK/compose.log" >&2; die "compose probe saw no force"; }
   grep -E 'conica-probe: [0-9]+ replies' "$WORK/compose.log" | sed 's/^/  /'
