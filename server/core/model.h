@@ -71,6 +71,7 @@ struct SolverOptions {
   double mass_damping = 0;       // 1/s: Rayleigh mass-proportional damping on all nodes
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
   double min_length_fraction = 0.05;  // hard stop: no spring shorter than this x l0
+  bool hard_stop = true;         // off only to show what happens without it
   double max_speed = 50;         // m/s: guard: faster nodes mean the step blew up
 };
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace conica {
 namespace {
@@ -36,30 +37,36 @@ double h_of(const Model& m) { return m.options.dt / m.options.substeps; }
   return short_springs;
 }
 
-// Counts springs shorter than their hard-stop length (squared lengths, no square root).
+// Counts springs shorter than their hard-stop length, measured along the direction they had at
+// the last force evaluation (u.d_old), so that a spring that inverted within one step is caught.
 [[gnu::noinline]] int count_short(int ns, const double* __restrict X, const int* __restrict si,
-                                  const int* __restrict sj, const double* __restrict lmin2) {
+                                  const int* __restrict sj, const double* __restrict ux,
+                                  const double* __restrict uy, const double* __restrict uz,
+                                  const double* __restrict lmin) {
   int n = 0;
   for (int k = 0; k < ns; ++k) {
     const int i = 3 * si[k], j = 3 * sj[k];
     const double dx = X[j] - X[i], dy = X[j + 1] - X[i + 1], dz = X[j + 2] - X[i + 2];
-    n += (dx * dx + dy * dy + dz * dz) < lmin2[k];
+    n += (dx * ux[k] + dy * uy[k] + dz * uz[k]) < lmin[k];
   }
   return n;
 }
 
-// Springs that x + t dx would make shorter than their hard-stop length and than they are now.
+// Springs that x + t dx would make shorter than their hard-stop length (measured along their
+// current direction, so an inversion counts) and than they are now.
 [[gnu::noinline]] int count_blocked(int ns, const double* __restrict X, const double* __restrict DX,
                                     double t, const int* __restrict si, const int* __restrict sj,
-                                    const double* __restrict lmin2, const double* __restrict len) {
+                                    const double* __restrict ux, const double* __restrict uy,
+                                    const double* __restrict uz, const double* __restrict lmin,
+                                    const double* __restrict len) {
   int n = 0;
   for (int k = 0; k < ns; ++k) {
     const int i = 3 * si[k], j = 3 * sj[k];
     const double dx = X[j] + t * DX[j] - X[i] - t * DX[i];
     const double dy = X[j + 1] + t * DX[j + 1] - X[i + 1] - t * DX[i + 1];
     const double dz = X[j + 2] + t * DX[j + 2] - X[i + 2] - t * DX[i + 2];
-    const double l2 = dx * dx + dy * dy + dz * dz;
-    n += (l2 < lmin2[k]) & (l2 < len[k] * len[k]);
+    const double l = dx * ux[k] + dy * uy[k] + dz * uz[k];
+    n += (l < lmin[k]) & (l < len[k]);
   }
   return n;
 }
@@ -75,13 +82,8 @@ int spring_geometry(const Model& m, const std::vector<Vec3>& x, Workspace& ws) {
 void hard_stop_project(const Model& m, State& s, Workspace& ws);
 
 // Geometry and card loads of every spring, with dampers and Maxwell branches.
-// The hard stop runs here, before forces: a spring found shorter than its minimum length is
-// projected back and the geometry recomputed.
 void spring_loads(const Model& m, State& s, Workspace& ws) {
-  if (spring_geometry(m, s.x, ws) > 0) {
-    hard_stop_project(m, s, ws);
-    spring_geometry(m, s.x, ws);
-  }
+  spring_geometry(m, s.x, ws);
   for (const SpringGroup& g : m.groups) {
     const int n = g.end - g.begin;
     if (g.law) {
@@ -213,7 +215,7 @@ void relax_maxwell(const Model& m, State& s, double h) {
 // approaching part of their relative velocity.
 void hard_stop(const Model& m, State& s, Workspace& ws) {
   if (count_short(m.num_springs(), s.x.front().data(), m.spring_i.data(), m.spring_j.data(),
-                  ws.min_length2.data()) > 0)
+                  ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.min_length.data()) > 0)
     hard_stop_project(m, s, ws);
 }
 
@@ -221,20 +223,20 @@ void hard_stop_project(const Model& m, State& s, Workspace& ws) {
   const int ns = m.num_springs();
   for (int k = 0; k < ns; ++k) {
     const int i = m.spring_i[k], j = m.spring_j[k];
-    Vec3 u = s.x[j] - s.x[i];
-    const double l = u.norm();
+    const Vec3 d = ws.dir(k);  // direction before the step: robust to inversion
+    const Vec3 u = s.x[j] - s.x[i];
+    const double l = u.dot(d);
     const double lmin = ws.min_length[k];
     if (l >= lmin) continue;
     const double wi = m.inv_mass[i], wj = m.inv_mass[j], w = wi + wj;
     if (w <= 0) continue;
-    const Vec3 d = l > 1e-15 ? Vec3(u / l) : ws.dir(k);
     const double gap = lmin - l;
     s.x[i] -= ((wi / w) * gap * d).cwiseProduct(m.free_axes[i]);
     s.x[j] += ((wj / w) * gap * d).cwiseProduct(m.free_axes[j]);
     const double vrel = d.dot(s.v[j] - s.v[i]);
     if (vrel < 0) {
-      s.v[i] += (wi / w) * vrel * d;
-      s.v[j] -= (wj / w) * vrel * d;
+      s.v[i] += ((wi / w) * vrel * d).cwiseProduct(m.free_axes[i]);
+      s.v[j] -= ((wj / w) * vrel * d).cwiseProduct(m.free_axes[j]);
     }
     ++s.counters.hard_stops;
   }
@@ -316,6 +318,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
     ws.v0[i] = s.v[i];
     s.x[i] += h * s.v[i].cwiseProduct(m.free_axes[i]);  // predictor x1 = x0 + h v0
   }
+  hard_stop(m, s, ws);  // the predictor must not cross solid height either
 
   for (int it = 0; it < m.options.newton_iterations; ++it) {
     for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.x0[i]) / h;
@@ -407,8 +410,8 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
     double step_len = 1.0;
     for (int tries = 0; tries < 12; ++tries) {
       if (count_blocked(ns, s.x.front().data(), ws.dx.front().data(), step_len,
-                        m.spring_i.data(), m.spring_j.data(), ws.min_length2.data(),
-                        ws.length.data()) == 0)
+                        m.spring_i.data(), m.spring_j.data(), ws.ux.data(), ws.uy.data(),
+                        ws.uz.data(), ws.min_length.data(), ws.length.data()) == 0)
         break;
       step_len *= 0.5;
     }
@@ -441,6 +444,14 @@ Workspace::Workspace(const Model& m) {
   ux.assign(ns, 1.0);
   uy.assign(ns, 0);
   uz.assign(ns, 0);
+  for (size_t k = 0; k < ns; ++k) {  // directions at rest until the first force evaluation
+    const Vec3 u = m.rest[m.spring_j[k]] - m.rest[m.spring_i[k]];
+    if (u.norm() > 0) {
+      ux[k] = u.x() / u.norm();
+      uy[k] = u.y() / u.norm();
+      uz[k] = u.z() / u.norm();
+    }
+  }
   min_length.assign(ns, 0);
   min_length2.assign(ns, 0);
   alpha.assign(ns, 0);
@@ -455,6 +466,7 @@ Workspace::Workspace(const Model& m) {
       const double l0 = m.rest_length[k];
       double lmin = m.options.min_length_fraction * l0;
       if (g.law) lmin = std::max(lmin, l0 - g.law->stroke() / m.deflection_scale[k]);
+      if (!m.options.hard_stop) lmin = -std::numeric_limits<double>::infinity();
       min_length[k] = lmin;
       min_length2[k] = lmin * lmin;
     }
@@ -528,11 +540,9 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
       case Integrator::kExplicitEuler: integrate_explicit(m, s, ws, false); break;
       case Integrator::kImplicitEuler: integrate_implicit(m, s, ws); break;
     }
+    hard_stop(m, s, ws);
     relax_maxwell(m, s, h);
   }
-  // The stop is enforced before every force evaluation; a last check leaves no spring short at
-  // the end of the tick.
-  hard_stop(m, s, ws);
   ++s.counters.steps;
   ++s.tick;
   s.time += m.options.dt;

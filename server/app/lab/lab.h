@@ -16,6 +16,7 @@ using Runner = std::function<int()>;
 void register_law(CLI::App& app, Runner* run);
 void register_mesh(CLI::App& app, Runner* run);
 void register_run(CLI::App& app, Runner* run);
+void register_stability(CLI::App& app, Runner* run);
 void register_compress(CLI::App& app, Runner* run);
 void register_calibrate(CLI::App& app, Runner* run);
 
