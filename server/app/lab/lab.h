@@ -19,6 +19,7 @@ void register_run(CLI::App& app, Runner* run);
 void register_stability(CLI::App& app, Runner* run);
 void register_compress(CLI::App& app, Runner* run);
 void register_calibrate(CLI::App& app, Runner* run);
+void register_viscoelastic(CLI::App& app, Runner* run);
 
 // Runs `/usr/bin/python3 scripts/NAME.py ARGS...` from the source tree to draw a figure.
 // Returns the exit status; prints why on failure.

@@ -29,6 +29,7 @@ int main(int argc, char** argv) {
   conica::lab::register_stability(app, &run);
   conica::lab::register_compress(app, &run);
   conica::lab::register_calibrate(app, &run);
+  conica::lab::register_viscoelastic(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
