@@ -40,6 +40,41 @@ for recipe in EF30_0T EF10_0T; do
     --styles "k-,b-,r--,g-." "$FIG/repro-fit-$recipe.csv::data_N,surrogate_N,full_N" \
     "$FIG/repro-fit25-$recipe.csv::full_N"
 done
+# A card per spring family (2: edges | diagonals, 3: edges | face | body diagonals, moduli tied by
+# isotropy), fitted through the full body up to 50 % strain (a few minutes per fit).
+for recipe in EF30_0T EF10_0T; do
+  data=()
+  for f in "$DATA/$recipe"/*.csv; do data+=(--data "$f"); done
+  for k in 2 3; do
+    "$LAB" calibrate --scene configs/phantom-cylinder.pbtxt "${data[@]}" --max-strain 0.5 \
+      --cards $k --full-iterations 3 --out "$FIG/repro-fitk$k-$recipe.card" \
+      --curves "$FIG/repro-fitk$k-$recipe.csv" | tee "$tmp/fitk$k-$recipe.log" | tail -2
+  done
+  "$PY" scripts/plot_curves.py --out "$FIG/repro-fitk-$recipe.png" \
+    --title "$recipe: cards per spring family, full body to 50 % strain" \
+    --xlabel "plate travel (mm)" --ylabel "force (N)" \
+    --labels "measured (mean of 10),2 cards: lattice,2 cards: full body,3 cards: lattice,3 cards: full body" \
+    --styles "k-,b-,b--,r-,r--" "$FIG/repro-fitk2-$recipe.csv::data_N,surrogate_N,full_N" \
+    "$FIG/repro-fitk3-$recipe.csv::surrogate_N,full_N"
+done
+
+# Figure 9: relaxation, creep (load-controlled plate) and hysteresis with a Maxwell branch.
+"$LAB" viscoelastic --scene configs/viscoelastic-cube.pbtxt --out "$FIG/repro-fig9" --plot
+
+# Table 2 anisotropy: the Table 2 block pressed along x and along z, and the white-only block.
+for b in anisotropic-block-x anisotropic-block-z isotropic-block-x isotropic-block-z; do
+  "$LAB" compress --scene "configs/$b.pbtxt" --to-strain 0.05 --rate-mm-per-min 60 --samples 10 \
+    --out "$FIG/repro-table2-$b.csv" 2> /dev/null
+done
+awk -F, 'FNR == 12 { f[FILENAME] = $2 }
+  END {
+    ax = f["'"$FIG"'/repro-table2-anisotropic-block-x.csv"] / 1.8e-3 / 0.05
+    az = f["'"$FIG"'/repro-table2-anisotropic-block-z.csv"] / 3.6e-3 / 0.05
+    ix = f["'"$FIG"'/repro-table2-isotropic-block-x.csv"] / 1.8e-3 / 0.05
+    iz = f["'"$FIG"'/repro-table2-isotropic-block-z.csv"] / 3.6e-3 / 0.05
+    printf "Table 2: E_x %.4g Pa, E_z %.4g Pa, ratio %.3f; white only %.4g / %.4g = %.3f\n", ax, az, ax / az, ix, iz, ix / iz
+  }' "$FIG"/repro-table2-*.csv
+
 # Cross-validation: fit on A1-A5 (surrogate), error on B1-B5 is printed by the unit test
 # calibration_test (FitOnHalfOfThePhantomTestsPredictsTheOtherHalf).
 

@@ -36,27 +36,64 @@ std::string fmt(double v, int precision = 6) {
 double sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
 double logit(double p) { return std::log(p / (1.0 - p)); }
 
-// Unconstrained coordinates of a shape: (ln E_c, logit of taper in its bounds, logit of stroke).
-CardShape decode(const double* x, const ShapeBounds& b) {
-  CardShape s;
-  s.modulus = std::exp(x[0]);
-  s.taper = b.taper_min + (b.taper_max - b.taper_min) * sigmoid(x[1]);
-  s.stroke = b.stroke_min + (b.stroke_max - b.stroke_min) * sigmoid(x[2]);
-  return s;
+// Unconstrained coordinates of K shapes: [ln E_c (K), logit stroke (K), logit taper (K, or 1
+// when tied)], the logits over the bounds.
+struct Layout {
+  int cards = 1;
+  bool tie = false;
+  ShapeBounds b;
+  std::vector<double> smin;  // (cards) stroke lower bound per card
+  bool iso = false;          // K > 1: moduli tied by the isotropy condition
+  double stroke_min(int c) const { return c < static_cast<int>(smin.size()) ? smin[c] : b.stroke_min; }
+  int moduli() const { return iso && cards > 1 ? cards - 1 : cards; }
+  int size() const { return moduli() + cards + (tie ? 1 : cards); }
+};
+double to01(double v, double lo, double hi) { return std::clamp((v - lo) / (hi - lo), 1e-6, 1 - 1e-6); }
+// Isotropic splits: K = 2, E_diag = 36/17 E_edge; K = 3, E_body = 4.5 w E_edge (w <= 0.8),
+// E_face = 4 (1 - w) E_edge (so that 4 E_e = E_f + 8/9 E_b).
+std::vector<CardShape> decode(const double* x, const Layout& L) {
+  std::vector<CardShape> out(L.cards);
+  const int M = L.moduli();
+  for (int c = 0; c < L.cards; ++c) {
+    out[c].stroke = L.stroke_min(c) + (L.b.stroke_max - L.stroke_min(c)) * sigmoid(x[M + c]);
+    out[c].taper = L.b.taper_min +
+                   (L.b.taper_max - L.b.taper_min) * sigmoid(x[M + L.cards + (L.tie ? 0 : c)]);
+  }
+  if (L.iso && L.cards == 2) {
+    out[0].modulus = std::exp(x[0]);
+    out[1].modulus = 36.0 / 17 * out[0].modulus;
+  } else if (L.iso && L.cards == 3) {
+    const double w = 0.8 * sigmoid(x[1]);  // w <= 0.8: the face diagonals keep a share
+    out[0].modulus = std::exp(x[0]);
+    out[1].modulus = 4 * (1 - w) * out[0].modulus;
+    out[2].modulus = 4.5 * w * out[0].modulus;
+  } else {
+    for (int c = 0; c < L.cards; ++c) out[c].modulus = std::exp(x[c]);
+  }
+  return out;
 }
-void encode(const CardShape& s, const ShapeBounds& b, double* x) {
-  auto inside = [](double p) { return std::clamp(p, 1e-6, 1 - 1e-6); };
-  x[0] = std::log(s.modulus);
-  x[1] = logit(inside((s.taper - b.taper_min) / (b.taper_max - b.taper_min)));
-  x[2] = logit(inside((s.stroke - b.stroke_min) / (b.stroke_max - b.stroke_min)));
+std::vector<double> encode(const std::vector<CardShape>& s, const Layout& L) {
+  std::vector<double> x(L.size());
+  const int M = L.moduli();
+  for (int c = 0; c < L.cards; ++c) {
+    x[M + c] = logit(to01(s[c].stroke, L.stroke_min(c), L.b.stroke_max));
+    if (!L.tie || c == 0)
+      x[M + L.cards + c] = logit(to01(s[c].taper, L.b.taper_min, L.b.taper_max));
+  }
+  x[0] = std::log(s[0].modulus);
+  if (L.iso && L.cards == 3)
+    x[1] = logit(std::clamp(s[2].modulus / (4.5 * 0.8 * s[0].modulus), 1e-6, 1 - 1e-6));
+  else if (!L.iso)
+    for (int c = 1; c < L.cards; ++c) x[c] = std::log(s[c].modulus);
+  return x;
 }
 
-std::vector<SpringGroupSpec> with_card(const std::vector<SpringGroupSpec>& groups,
-                                       const ConicalCard& card) {
-  std::vector<SpringGroupSpec> out = groups;
-  for (auto& g : out)
-    if (g.card.law == LawKind::kConical) g.card.conical = card;
-  return out;
+std::string shapes_text(const std::vector<CardShape>& sh) {
+  std::string t;
+  for (size_t c = 0; c < sh.size(); ++c)
+    t += (c ? "; " : "") + std::string("E_c ") + fmt(sh[c].modulus, 5) + " Pa, taper " +
+         fmt(sh[c].taper, 4) + ", stroke " + fmt(sh[c].stroke, 4);
+  return t;
 }
 
 struct BodyGeometry {
@@ -65,10 +102,9 @@ struct BodyGeometry {
 };
 
 std::vector<double> surrogate_impl(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
-                                   const BodyGeometry& geo, const ConicalCard& card,
-                                   const std::vector<double>& grid) {
+                                   const BodyGeometry& geo, const std::vector<double>& grid) {
   Model cell;
-  if (!make_uniaxial_cell(with_card(groups, card), mapping, 0.01, &cell).empty())
+  if (!make_uniaxial_cell(groups, mapping, 0.01, &cell).empty())
     return std::vector<double>(grid.size(), std::numeric_limits<double>::quiet_NaN());
   std::vector<double> strains(grid.size());
   for (size_t k = 0; k < grid.size(); ++k) strains[k] = grid[k] / geo.height;
@@ -77,20 +113,25 @@ std::vector<double> surrogate_impl(const std::vector<SpringGroupSpec>& groups, M
   return f;
 }
 
+std::vector<ConicalCard> cards_of(const ConicalCard& base, const std::vector<CardShape>& sh) {
+  std::vector<ConicalCard> out;
+  for (const CardShape& s : sh) out.push_back(card_with_shape(base, s));
+  return out;
+}
+
 // Residuals (model - data) / data over grid indices >= first, for Ceres.
 struct RelativeResiduals {
-  std::function<std::vector<double>(const ConicalCard&)> model;
+  std::function<std::vector<double>(const std::vector<ConicalCard>&)> model;
   ConicalCard base;
-  ShapeBounds bounds;
+  Layout layout;
   const std::vector<double>* data = nullptr;
   int first = 0;
-  int* evaluations = nullptr;
 
   bool operator()(double const* const* x, double* r) const {
-    const ConicalCard card = card_with_shape(base, decode(x[0], bounds));
-    if (!validate(card).empty()) return false;
-    const std::vector<double> f = model(card);
-    ++*evaluations;
+    const std::vector<ConicalCard> cards = cards_of(base, decode(x[0], layout));
+    for (const ConicalCard& c : cards)
+      if (!validate(c).empty()) return false;
+    const std::vector<double> f = model(cards);
     for (size_t k = first; k < data->size(); ++k) {
       if (!std::isfinite(f[k])) return false;
       r[k - first] = (f[k] - (*data)[k]) / (*data)[k];
@@ -101,16 +142,13 @@ struct RelativeResiduals {
 
 class Progress : public ceres::IterationCallback {
  public:
-  Progress(const FitOptions& o, std::string stage, int n, const double* x, const ShapeBounds& b)
-      : o_(o), stage_(std::move(stage)), n_(n), x_(x), b_(b) {}
+  Progress(const FitOptions& o, std::string stage, int n, const double* x, const Layout& L)
+      : o_(o), stage_(std::move(stage)), n_(n), x_(x), L_(L) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
-    if (o_.progress) {
-      const CardShape sh = decode(x_, b_);
+    if (o_.progress)
       o_.progress(stage_ + " iteration " + std::to_string(s.iteration) + ": rms relative error " +
-                  fmt(100 * std::sqrt(2 * s.cost / n_), 4) + " %, E_c " + fmt(sh.modulus, 5) +
-                  " Pa, taper " + fmt(sh.taper, 4) + ", stroke " + fmt(sh.stroke, 4) +
-                  (s.step_is_successful ? "" : " (step rejected)"));
-    }
+                  fmt(100 * std::sqrt(2 * s.cost / n_), 4) + " %, " +
+                  shapes_text(decode(x_, L_)) + (s.step_is_successful ? "" : " (step rejected)"));
     return ceres::SOLVER_CONTINUE;
   }
 
@@ -119,26 +157,25 @@ class Progress : public ceres::IterationCallback {
   std::string stage_;
   int n_;
   const double* x_;
-  ShapeBounds b_;
+  Layout L_;
 };
 
 // Levenberg-Marquardt from x (updated in place).
 void solve_lm(RelativeResiduals res, int num_residuals, int iterations, bool central,
               double relative_step, const FitOptions& o, const std::string& stage, double* x) {
+  const Layout L = res.layout;
   ceres::Problem problem;
   ceres::NumericDiffOptions nd;
   nd.relative_step_size = relative_step;
   ceres::DynamicCostFunction* cost;
   if (central) {
-    auto* c = new ceres::DynamicNumericDiffCostFunction<RelativeResiduals, ceres::CENTRAL>(
+    cost = new ceres::DynamicNumericDiffCostFunction<RelativeResiduals, ceres::CENTRAL>(
         new RelativeResiduals(std::move(res)), ceres::TAKE_OWNERSHIP, nd);
-    cost = c;
   } else {
-    auto* c = new ceres::DynamicNumericDiffCostFunction<RelativeResiduals, ceres::FORWARD>(
+    cost = new ceres::DynamicNumericDiffCostFunction<RelativeResiduals, ceres::FORWARD>(
         new RelativeResiduals(std::move(res)), ceres::TAKE_OWNERSHIP, nd);
-    cost = c;
   }
-  cost->AddParameterBlock(3);
+  cost->AddParameterBlock(L.size());
   cost->SetNumResiduals(num_residuals);
   problem.AddResidualBlock(cost, nullptr, x);
   ceres::Solver::Options so;
@@ -150,7 +187,7 @@ void solve_lm(RelativeResiduals res, int num_residuals, int iterations, bool cen
   so.parameter_tolerance = 1e-10;
   so.num_threads = 1;
   so.logging_type = ceres::SILENT;
-  Progress cb(o, stage, num_residuals, x, o.bounds);
+  Progress cb(o, stage, num_residuals, x, L);
   so.callbacks.push_back(&cb);
   so.update_state_every_iteration = true;
   ceres::Solver::Summary summary;
@@ -270,12 +307,88 @@ bool mean_curve(const std::vector<Curve>& curves, const std::vector<double>& gri
   return true;
 }
 
-std::vector<double> surrogate_force(const BodySpec& spec, const ConicalCard& card,
+std::vector<int> card_families(int cards) {
+  if (cards == 2) return {kEdge, kFaceDiagonal | kBodyDiagonal};
+  if (cards == 3) return {kEdge, kFaceDiagonal, kBodyDiagonal};
+  return {kAllFamilies};
+}
+
+std::string families_name(int f) {
+  switch (f) {
+    case kEdge: return "edges";
+    case kFaceDiagonal: return "face-diagonals";
+    case kBodyDiagonal: return "body-diagonals";
+    case kFaceDiagonal | kBodyDiagonal: return "diagonals";
+    case kAllFamilies: return "all";
+    default: return "families-" + std::to_string(f);
+  }
+}
+
+LatticeModuli lattice_moduli(const std::vector<SpringGroupSpec>& groups) {
+  LatticeModuli m;
+  double ee = 0, ef = 0, eb = 0;  // family moduli E_c = K0 / L0 (first group wins, as in build)
+  int taken = 0;
+  for (const SpringGroupSpec& g : groups) {
+    if (!g.regions.empty() || g.axis.norm() > 0) {
+      m.c11 = m.c12 = m.c44 = m.young = m.poisson = m.anisotropy = std::nan("");
+      return m;
+    }
+    const double e = g.card.k0() / g.card.free_length();
+    const int f = g.families & ~taken;
+    if (f & kEdge) ee = e;
+    if (f & kFaceDiagonal) ef = e;
+    if (f & kBodyDiagonal) eb = e;
+    taken |= g.families;
+  }
+  m.c11 = (4 * ee + 2 * ef + 4.0 / 9 * eb) / 28;
+  m.c12 = m.c44 = (ef + 4.0 / 9 * eb) / 28;
+  m.young = (m.c11 - m.c12) * (m.c11 + 2 * m.c12) / (m.c11 + m.c12);
+  m.poisson = m.c12 / (m.c11 + m.c12);
+  m.anisotropy = 2 * m.c44 / (m.c11 - m.c12);
+  return m;
+}
+
+std::vector<SpringGroupSpec> split_groups(const BodySpec& spec,
+                                          const std::vector<ConicalCard>& cards,
+                                          std::string* error) {
+  std::vector<SpringGroupSpec> out;
+  const std::vector<int> fam = card_families(static_cast<int>(cards.size()));
+  bool done = false;
+  for (const SpringGroupSpec& g : spec.groups) {
+    if (done || g.card.law != LawKind::kConical) {
+      out.push_back(g);
+      continue;
+    }
+    done = true;
+    for (size_t c = 0; c < cards.size(); ++c) {
+      SpringGroupSpec part = g;
+      part.families = g.families & fam[c];
+      if (part.families == 0) {
+        if (error) *error = "group \"" + g.name + "\" has no " + families_name(fam[c]);
+        return {};
+      }
+      if (cards.size() > 1) part.name = g.name + "-" + families_name(fam[c]);
+      part.card.conical = cards[c];
+      out.push_back(part);
+    }
+  }
+  return out;
+}
+
+std::vector<double> surrogate_force(const BodySpec& spec, const std::vector<SpringGroupSpec>& groups,
                                     const std::vector<double>& grid) {
   Model m;
   if (!build_model(spec, &m).empty() || m.planes.empty())
     return std::vector<double>(grid.size(), std::numeric_limits<double>::quiet_NaN());
-  return surrogate_impl(spec.groups, spec.mapping, {plate_height(m), cross_section(m)}, card, grid);
+  return surrogate_impl(groups, spec.mapping, {plate_height(m), cross_section(m)}, grid);
+}
+
+std::vector<double> surrogate_force(const BodySpec& spec, const ConicalCard& card,
+                                    const std::vector<double>& grid) {
+  std::vector<SpringGroupSpec> groups = spec.groups;
+  for (auto& g : groups)
+    if (g.card.law == LawKind::kConical) g.card.conical = card;
+  return surrogate_force(spec, groups, grid);
 }
 
 FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
@@ -299,16 +412,26 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     r.error = "need at least one curve, points >= 4 and 0 < max_strain < 1";
     return r;
   }
+  if (o.cards < 1 || o.cards > 3) {
+    r.error = "cards must be 1, 2 or 3";
+    return r;
+  }
+  const int K = o.cards;
+  const ConicalCard base = conical->card.conical;
+  if (std::string e; split_groups(spec, std::vector<ConicalCard>(K, base), &e).empty()) {
+    r.error = e;
+    return r;
+  }
   Model body;
   if (std::string e = build_model(spec, &body); !e.empty() || body.planes.empty()) {
     r.error = e.empty() ? "the scene has no plate" : e;
     return r;
   }
   const BodyGeometry geo{plate_height(body), cross_section(body)};
-  const ConicalCard base = conical->card.conical;
   say("body: height " + fmt(geo.height * 1e3) + " mm, cross-section " + fmt(geo.area * 1e6) +
       " mm^2, " + std::to_string(body.num_nodes()) + " nodes, " +
-      std::to_string(body.num_springs()) + " springs");
+      std::to_string(body.num_springs()) + " springs; " + std::to_string(K) + " card(s)" +
+      (K > 1 && o.tie_taper ? ", one shared taper" : ""));
 
   // Common grid and the mean measured curve.
   const int n = o.points;
@@ -331,100 +454,206 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
       "), error over points from " + fmt(r.grid[r.first] * 1e3) + " mm (strain >= " +
       fmt(o.skip_strain) + ")");
 
-  auto surrogate = [&](const ConicalCard& card) {
-    ++r.evaluations;
-    return surrogate_impl(spec.groups, spec.mapping, geo, card, r.grid);
+  auto groups_for = [&](const std::vector<ConicalCard>& cards) {
+    return split_groups(spec, cards);
   };
-  // Best modulus for given curve shape: forces are proportional to E_c at fixed (taper, stroke).
+  auto surrogate = [&](const std::vector<ConicalCard>& cards) {
+    ++r.evaluations;
+    return surrogate_impl(groups_for(cards), spec.mapping, geo, r.grid);
+  };
+  // Best common scale of the moduli: at fixed tapers and strokes, forces are proportional to a
+  // common factor on every E_c.
   auto best_scale = [&](const std::vector<double>& f) {
     double a = 0, b = 0;
     for (int k = r.first; k < n; ++k) {
       const double q = f[k] / r.data[k];
+      if (!std::isfinite(q)) return 0.0;
       a += q;
       b += q * q;
     }
     return b > 0 ? a / b : 0.0;
   };
+  // Error of shapes with the moduli scaled in closed form (shapes updated).
+  auto scaled_error = [&](std::vector<CardShape>* sh) {
+    const std::vector<ConicalCard> cards = cards_of(base, *sh);
+    for (const ConicalCard& c : cards)
+      if (!validate(c).empty()) return std::numeric_limits<double>::infinity();
+    std::vector<double> f = surrogate(cards);
+    const double scale = best_scale(f);
+    if (!(scale > 0)) return std::numeric_limits<double>::infinity();
+    for (double& v : f) v *= scale;
+    for (CardShape& s : *sh) s.modulus *= scale;
+    return average_relative_error(f, r.data, r.first);
+  };
 
-  // 1. Grid search over (taper, stroke), modulus in closed form.
   const ShapeBounds& B = o.bounds;
+  // Stroke bounds per card: a family's springs must not reach their stroke (the hard stop) in
+  // the fitted range; their compressive strain is at most the body's for edges, half of it for
+  // face diagonals and a third for body diagonals (lateral expansion only lowers them).
+  std::vector<double> smin(K);
+  for (int c = 0; c < K; ++c) {
+    const int f = card_families(K)[c];
+    const double share = (f & kEdge) ? 1.0 : (f & kFaceDiagonal) ? 0.5 : 1.0 / 3;
+    smin[c] = std::min(B.stroke_max * 0.99, std::max(B.stroke_min, 1.02 * share * o.max_strain));
+  }
+
+  // 1. One card: grid search over (taper, stroke), modulus in closed form, then LM.
   CardShape best{1e4, 0.25, 0.9};
   double best_err = std::numeric_limits<double>::infinity();
   const int nt = 8, ns = 9;
   for (int i = 0; i < nt; ++i)
     for (int j = 0; j < ns; ++j) {
-      CardShape sh;
-      sh.modulus = 1e4;
-      sh.taper = B.taper_min + (B.taper_max - B.taper_min) * (i + 0.5) / nt;
-      sh.stroke = B.stroke_min + (B.stroke_max - B.stroke_min) * (j + 1.0) / ns;
-      const ConicalCard c = card_with_shape(base, sh);
-      if (!validate(c).empty()) continue;
-      std::vector<double> f = surrogate(c);
-      const double scale = best_scale(f);
-      if (!(scale > 0)) continue;
-      for (double& v : f) v *= scale;
-      sh.modulus *= scale;
-      const double e = average_relative_error(f, r.data, r.first);
+      std::vector<CardShape> sh(K);
+      sh[0].modulus = 1e4;
+      sh[0].taper = B.taper_min + (B.taper_max - B.taper_min) * (i + 0.5) / nt;
+      sh[0].stroke = smin[0] + (B.stroke_max - smin[0]) * (j + 1.0) / ns;
+      for (int c = 1; c < K; ++c) sh[c] = sh[0];
+      const double e = scaled_error(&sh);
       if (e < best_err) {
         best_err = e;
-        best = sh;
+        best = sh[0];
       }
     }
-  say("grid search (" + std::to_string(nt * ns) + " shapes): start E_c " + fmt(best.modulus, 5) +
-      " Pa, taper " + fmt(best.taper, 4) + ", stroke " + fmt(best.stroke, 4) +
-      ", average relative error " + fmt(100 * best_err, 4) + " %");
+  say("grid search (" + std::to_string(nt * ns) + " shapes, one card): start E_c " +
+      fmt(best.modulus, 5) + " Pa, taper " + fmt(best.taper, 4) + ", stroke " +
+      fmt(best.stroke, 4) + ", average relative error " + fmt(100 * best_err, 4) + " %");
 
-  // 2. Levenberg-Marquardt on the surrogate.
-  double x[3];
-  encode(best, B, x);
+  const int R = n - r.first;
   RelativeResiduals res;
   res.model = surrogate;
   res.base = base;
-  res.bounds = B;
   res.data = &r.data;
   res.first = r.first;
-  int lm_calls = 0;  // evaluations are counted in `surrogate` / `full`
-  res.evaluations = &lm_calls;
-  solve_lm(res, n - r.first, o.max_iterations, true, 1e-6, o, "surrogate LM", x);
-  r.shape = decode(x, B);
-  r.card = card_with_shape(base, r.shape);
-  r.surrogate = surrogate(r.card);
-  r.surrogate_error = r.surrogate_error_before_refine =
-      average_relative_error(r.surrogate, r.data, r.first);
-  say("surrogate fit: average relative error " + fmt(100 * r.surrogate_error, 4) + " %");
+  Layout L1{1, false, B, {smin[0]}, false};
+  res.layout = L1;
+  std::vector<double> x1 = encode({best}, L1);
+  solve_lm(res, R, o.max_iterations, true, 1e-6, o, "surrogate LM (one card)", x1.data());
+  const CardShape one = decode(x1.data(), L1)[0];
+
+  // 2. K cards: starts from the one-card optimum, LM from the best few.
+  struct Candidate {
+    std::vector<CardShape> shapes;
+    double surrogate_error = 0;
+  };
+  std::vector<Candidate> found;
+  if (K == 1) {
+    found.push_back({{one}, 0});
+  } else {
+    Layout L{K, o.tie_taper, B, smin, o.isotropic};
+    res.layout = L;
+    std::vector<Candidate> starts;
+    auto add_start = [&](std::vector<CardShape> sh) {
+      const double e = scaled_error(&sh);
+      if (std::isfinite(e)) starts.push_back({sh, e});
+    };
+    if (!o.isotropic) add_start(std::vector<CardShape>(K, one));  // the one-card body itself
+    // Diagonal cards: modulus relative to the edges' (36/17: isotropic) and stroke on a grid;
+    // the edges keep the one-card shape.
+    std::vector<double> ratios = {0.5, 1.0, 36.0 / 17, 5.0};
+    if (o.isotropic) ratios = K == 2 ? std::vector<double>{36.0 / 17} : std::vector<double>{0.1, 0.4, 0.7};
+    for (double ratio : ratios)
+      for (double stroke : {0.25, 0.4, 0.6, 0.8})
+        for (double taper : {one.taper, 0.3}) {
+          std::vector<CardShape> sh(K, one);
+          for (int c = 1; c < K; ++c) {
+            sh[c].modulus = ratio * one.modulus;
+            if (o.isotropic && K == 3)  // ratio is the body-diagonal weight w
+              sh[c].modulus = (c == 1 ? 4 * (1 - ratio) : 4.5 * ratio) * one.modulus;
+            sh[c].stroke = std::clamp(stroke, smin[c], B.stroke_max);
+            sh[c].taper = o.tie_taper ? one.taper : std::clamp(taper, B.taper_min, B.taper_max);
+          }
+          // the edges stiffen later when the diagonals take part of the stiffening
+          for (double edge_stroke : {one.stroke, std::min(B.stroke_max, one.stroke * 1.15)}) {
+            sh[0].stroke = edge_stroke;
+            add_start(sh);
+          }
+        }
+    std::sort(starts.begin(), starts.end(), [](const Candidate& a, const Candidate& b) {
+      return a.surrogate_error < b.surrogate_error;
+    });
+    say("starts: " + std::to_string(starts.size()) + " shapes, best " +
+        fmt(100 * starts.front().surrogate_error, 4) + " %");
+    const int tries = std::min<int>(4, static_cast<int>(starts.size()));
+    for (int t = 0; t < tries; ++t) {
+      std::vector<double> x = encode(starts[t].shapes, L);
+      solve_lm(res, R, o.max_iterations, true, 1e-6, o,
+               "surrogate LM (" + std::to_string(K) + " cards, start " + std::to_string(t + 1) + ")",
+               x.data());
+      const std::vector<CardShape> sh = decode(x.data(), L);
+      found.push_back({sh, average_relative_error(surrogate(cards_of(base, sh)), r.data, r.first)});
+    }
+    // The one-card body as a candidate too (the cards may not help in the full body).
+    if (!o.isotropic) found.push_back(
+        {std::vector<CardShape>(K, one),
+         average_relative_error(surrogate(cards_of(base, std::vector<CardShape>(K, one))), r.data,
+                                r.first)});
+    std::stable_sort(found.begin(), found.end(), [](const Candidate& a, const Candidate& b) {
+      return a.surrogate_error < b.surrogate_error;
+    });
+  }
+
+  auto set_result = [&](const std::vector<CardShape>& sh) {
+    r.shapes = sh;
+    r.cards = cards_of(base, sh);
+    r.shape = sh[0];
+    r.card = r.cards[0];
+    r.groups = groups_for(r.cards);
+    r.moduli = lattice_moduli(r.groups);
+    r.surrogate = surrogate(r.cards);
+    r.surrogate_error = average_relative_error(r.surrogate, r.data, r.first);
+  };
+  set_result(found.front().shapes);
+  r.surrogate_error_before_refine = r.surrogate_error;
+  say("surrogate fit: average relative error " + fmt(100 * r.surrogate_error, 4) + " %: " +
+      shapes_text(r.shapes));
   if (o.full_iterations < 0) return r;
 
-  // 3. The full body: verify, then refine through it.
-  auto full = [&](const ConicalCard& card) {
+  // 3. The full body: verify (K > 1: the best few distinct optima), then refine through it.
+  auto full = [&](const std::vector<ConicalCard>& cards) {
     BodySpec s = spec;
-    s.groups = with_card(spec.groups, card);
+    s.groups = groups_for(cards);
     Model m;
-    if (!build_model(s, &m).empty()) return std::vector<double>(n, std::nan(""));
+    if (s.groups.empty() || !build_model(s, &m).empty()) return std::vector<double>(n, std::nan(""));
     ++r.full_evaluations;
     const Curve c = compression_curve(m, o.rate, o.max_strain, n);
     std::vector<double> f(n);
     for (int k = 0; k < n; ++k) f[k] = c[k + 1].force;
     return f;
   };
-  r.full = full(r.card);
-  r.full_error = r.full_error_before_refine = average_relative_error(r.full, r.data, r.first);
-  say("full body at the surrogate optimum: average relative error " + fmt(100 * r.full_error, 4) +
-      " %");
+  double best_full = std::numeric_limits<double>::infinity();
+  std::vector<CardShape> best_shapes = found.front().shapes;
+  std::vector<double> best_curve;
+  const int verify = K == 1 ? 1 : std::min<int>(std::max(1, o.verify_candidates),
+                                                 static_cast<int>(found.size()));
+  for (int c = 0; c < verify; ++c) {
+    const std::vector<double> f = full(cards_of(base, found[c].shapes));
+    const double e = average_relative_error(f, r.data, r.first);
+    say("full body at surrogate optimum " + std::to_string(c + 1) + " (surrogate " +
+        fmt(100 * found[c].surrogate_error, 4) + " %): average relative error " +
+        fmt(100 * e, 4) + " %");
+    if (e < best_full) {
+      best_full = e;
+      best_shapes = found[c].shapes;
+      best_curve = f;
+    }
+  }
+  set_result(best_shapes);
+  r.surrogate_error_before_refine = r.surrogate_error;
+  r.full = best_curve;
+  r.full_error = r.full_error_before_refine = best_full;
   if (o.full_iterations == 0) return r;
   RelativeResiduals fres = res;
+  fres.layout = Layout{K, K > 1 && o.tie_taper, B, smin, K > 1 && o.isotropic};
   fres.model = full;
-  solve_lm(fres, n - r.first, o.full_iterations, false, 1e-4, o, "full-body LM", x);
-  const CardShape refined = decode(x, B);
-  const ConicalCard rc = card_with_shape(base, refined);
-  const std::vector<double> rf = full(rc);
+  std::vector<double> x = encode(best_shapes, fres.layout);
+  solve_lm(fres, R, o.full_iterations, false, 1e-4, o, "full-body LM", x.data());
+  const std::vector<CardShape> refined = decode(x.data(), fres.layout);
+  const std::vector<double> rf = full(cards_of(base, refined));
   const double re = average_relative_error(rf, r.data, r.first);
   if (re < r.full_error) {
-    r.shape = refined;
-    r.card = rc;
+    set_result(refined);
     r.full = rf;
     r.full_error = re;
-    r.surrogate = surrogate(rc);
-    r.surrogate_error = average_relative_error(r.surrogate, r.data, r.first);
   }
   say("full body refined: average relative error " + fmt(100 * r.full_error, 4) + " %");
   return r;
@@ -443,6 +672,27 @@ std::string card_fragment(const std::string& group_name, const SpringCard& card)
        << fmt(card.maxwell_tau, 9) << "\n";
   os << "  }\n}\n";
   return os.str();
+}
+
+}  // namespace conica::lab
+
+namespace conica::lab {
+
+std::string group_fragment(const SpringGroupSpec& g) {
+  std::string f = card_fragment(g.name, g.card);
+  f.resize(f.size() - 2);  // drop the closing "}\n"
+  if (g.families != kAllFamilies) {
+    std::string list;
+    if (g.families & kEdge) list += "EDGE";
+    if (g.families & kFaceDiagonal) list += std::string(list.empty() ? "" : ", ") + "FACE_DIAGONAL";
+    if (g.families & kBodyDiagonal) list += std::string(list.empty() ? "" : ", ") + "BODY_DIAGONAL";
+    f += "  families: [" + list + "]\n";
+  }
+  for (const std::string& reg : g.regions) f += "  regions: \"" + reg + "\"\n";
+  if (g.axis.norm() > 0)
+    f += "  axis { x: " + fmt(g.axis.x(), 9) + " y: " + fmt(g.axis.y(), 9) + " z: " +
+         fmt(g.axis.z(), 9) + " }\n  max_angle_deg: " + fmt(g.max_angle_deg, 9) + "\n";
+  return f + "}\n";
 }
 
 }  // namespace conica::lab

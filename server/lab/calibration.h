@@ -15,6 +15,22 @@
 // scene's card: D1 = rho D2; d from the solid height Ls = (1 - s) L0 = sqrt((n_a d)^2 -
 // (r2 - r1)^2) (Type I; s = 1 is the Type I/II boundary); G from K0 = E_c L0. At fixed (rho, s)
 // every force is proportional to E_c, which gives the starting modulus in closed form.
+//
+// Several cards (FitOptions::cards = K). The scene's conical group is split by lattice family
+// (K = 2: edges | face and body diagonals; K = 3: edges | face diagonals | body diagonals), each
+// part with its own card, i.e. its own (E_c, taper, stroke): springs of different families in
+// parallel, with different transition points, whose sum stiffens smoothly. Every part is still a
+// conical spring. What the extra cards add: the families see different strains under uniaxial
+// compression (vertical edges the full strain e, face diagonals about (1 - nu) e / 2, body
+// diagonals about (1 - 2 nu) e / 3, horizontal edges are stretched), so a card per family can
+// place stiffening onsets at several strains; and the diagonal moduli set the lattice's shear
+// stiffness (C44 = C12 for pair springs), which decides when the homogeneous state buckles.
+// What trades off: one uniaxial curve fixes the uniaxial modulus but not how it splits over the
+// families (the split moves the lateral contraction, which is not measured), and within a family
+// taper and stroke trade off as for one card. With tie_taper the cards share one taper (2K + 1
+// numbers instead of 3K). The lattice's linear moduli (C11, C12, C44) are reported so that the
+// split can be judged (isotropy of a cubic pair-spring lattice: C11 - C12 = 2 C44, i.e.
+// 4 E_edge = E_face + 8/9 E_body with the family moduli defined below).
 #pragma once
 
 #include <functional>
@@ -46,10 +62,34 @@ ConicalCard card_with_shape(const ConicalCard& base, const CardShape& shape);
 // Bounds of the search (a shape outside them is never tried).
 struct ShapeBounds {
   double taper_min = 0.02, taper_max = 0.95;
-  double stroke_min = 0.2, stroke_max = 1.0;
+  double stroke_min = 0.1, stroke_max = 1.0;  // a card's stroke is also kept above the
+                                              // largest strain of its springs in the fit range
 };
 
+// Family masks (SpringFamily bits) of the cards of a K-card fit, K = 1..3.
+std::vector<int> card_families(int cards);
+// "edges", "face-diagonals", "body-diagonals", "diagonals", "all" (for group names).
+std::string families_name(int families);
+
+// Linear moduli of a box lattice under the strain mapping (Pa), from the groups' cards and
+// families (cubic symmetry; groups with regions or an axis are not allowed and give NaN).
+// Per cell each spring of direction d and card modulus E_c = K0 / L0 adds E_c / 28 d_i d_j d_k d_l:
+// C11 = (4 E_e + 2 E_f + 4/9 E_b) / 28, C12 = C44 = (E_f + 4/9 E_b) / 28.
+struct LatticeModuli {
+  double c11 = 0, c12 = 0, c44 = 0;
+  double young = 0;       // uniaxial modulus along a cube axis, lateral contraction free
+  double poisson = 0;     // lateral contraction ratio along a cube axis
+  double anisotropy = 0;  // Zener ratio 2 C44 / (C11 - C12): 1 is isotropic
+};
+LatticeModuli lattice_moduli(const std::vector<SpringGroupSpec>& groups);
+
 struct FitOptions {
+  int cards = 1;             // conical cards, one per family part (see above), 1..3
+  bool tie_taper = false;    // the cards share one taper
+  bool isotropic = true;     // K > 1: the family moduli satisfy the isotropy condition
+                             // 4 E_edge = E_face + 8/9 E_body (K - 1 moduli free instead of K)
+  int verify_candidates = 3; // K > 1: full-body check of this many distinct surrogate optima,
+                             // the best full-body one is kept (full_iterations >= 0)
   double max_strain = 0.5;   // fit up to this engineering strain of the body
   int points = 50;           // displacement grid: points equal steps up to max_strain
   double skip_strain = 0.03; // the error and residuals leave out grid points below this strain
@@ -64,7 +104,12 @@ struct FitOptions {
 
 struct FitResult {
   CardShape shape;
-  ConicalCard card;               // the fitted card (of every conical group)
+  ConicalCard card;               // the fitted card of the first part (K = 1: the only one)
+  std::vector<CardShape> shapes;  // (K) per card
+  std::vector<ConicalCard> cards; // (K)
+  std::vector<SpringGroupSpec> groups;  // the fitted groups: the scene's conical group split by
+                                        // family, each with its fitted card, in scene order
+  LatticeModuli moduli;           // of the fitted groups
   std::vector<double> grid;       // (points) plate travel, m
   std::vector<double> data;       // (points) mean measured force, N
   std::vector<double> surrogate;  // (points) cell model force, N
@@ -93,15 +138,30 @@ bool mean_curve(const std::vector<Curve>& curves, const std::vector<double>& gri
 std::vector<double> surrogate_force(const BodySpec& spec, const ConicalCard& card,
                                     const std::vector<double>& grid);
 
-// Fits the conical card of `spec` (every conical group gets the fitted card; the spec must have
-// a top plate, see ensure_top_plate) to the mean of `curves`: a grid search over (taper, stroke)
-// with the modulus in closed form, Levenberg-Marquardt (Ceres) on the cell surrogate, then a
-// full-body compression to verify and, with full_iterations > 0, Levenberg-Marquardt through
-// the full body from the surrogate's optimum.
+// Force predicted by the cell surrogate with `groups` in place of the spec's groups.
+std::vector<double> surrogate_force(const BodySpec& spec, const std::vector<SpringGroupSpec>& groups,
+                                    const std::vector<double>& grid);
+
+// The spec's groups with its first conical group split into the parts of card_families(cards),
+// each with the card `cards[i]` (same regions, axis, cap, damping). Empty on error (a part that
+// selects no family).
+std::vector<SpringGroupSpec> split_groups(const BodySpec& spec, const std::vector<ConicalCard>& cards,
+                                          std::string* error = nullptr);
+
+// Fits the conical card(s) of `spec` (its first conical group, split into options.cards family
+// parts; the spec must have a top plate, see ensure_top_plate) to the mean of `curves`: for one
+// card a grid search over (taper, stroke) with the modulus in closed form; for K cards automatic
+// starts from the one-card optimum (diagonal strokes and modulus splits on a grid, scale in
+// closed form); Levenberg-Marquardt (Ceres) on the cell surrogate from the best starts; then a
+// full-body compression to verify (K > 1: the best verify_candidates surrogate optima, keeping
+// the best in the full body) and, with full_iterations > 0, Levenberg-Marquardt through the
+// full body.
 FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
                     const FitOptions& options);
 
 // The card as a scene fragment: group { name: "..." card { conical { ... } stiffness_cap: ... } }.
 std::string card_fragment(const std::string& group_name, const SpringCard& card);
+// A group as a scene fragment (card, families when not all, regions, axis).
+std::string group_fragment(const SpringGroupSpec& group);
 
 }  // namespace conica::lab

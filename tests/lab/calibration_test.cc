@@ -140,5 +140,98 @@ TEST(CalibrationTest, FitOnHalfOfThePhantomTestsPredictsTheOtherHalf) {
   }
 }
 
+// The family moduli: one card for all springs gives the known cubic lattice (C11 : C12 = 58 : 13,
+// E_z = 0.2113 E_c); the isotropic split (4 E_edge = E_face + 8/9 E_body) gives Zener ratio 1 and
+// the Cauchy solid's Poisson ratio 1/4.
+TEST(CalibrationTest, LatticeModuliOfFamilySplits) {
+  const BodySpec spec = Phantom();
+  const ConicalCard base = spec.groups[0].card.conical;
+  const ConicalCard c1 = card_with_shape(base, {1e5, 0.3, 0.8});
+  const LatticeModuli one = lattice_moduli(split_groups(spec, {c1}));
+  EXPECT_NEAR(one.c11 / one.c12, 58.0 / 13, 1e-12);
+  EXPECT_NEAR(one.young / 1e5, 0.211268, 1e-5);
+  EXPECT_NEAR(one.anisotropy, 2 * 13.0 / 45, 1e-12);
+  const ConicalCard e = card_with_shape(base, {1e5, 0.3, 0.8});
+  const ConicalCard d = card_with_shape(base, {1e5 * 36 / 17, 0.5, 0.4});
+  const std::vector<SpringGroupSpec> two = split_groups(spec, {e, d});
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[0].families, kEdge);
+  EXPECT_EQ(two[1].families, kFaceDiagonal | kBodyDiagonal);
+  const LatticeModuli iso = lattice_moduli(two);
+  EXPECT_NEAR(iso.anisotropy, 1, 1e-12);
+  EXPECT_NEAR(iso.poisson, 0.25, 1e-12);
+  // The surrogate's small-strain stress matches the moduli.
+  const double area = 2e-3;  // any: compare stress through the ratio of two scenes
+  (void)area;
+  const auto f1 = surrogate_force(spec, two, {1e-5});
+  const auto fo = surrogate_force(spec, split_groups(spec, {c1}), {1e-5});
+  EXPECT_NEAR(f1[0] / fo[0], iso.young / one.young, 2e-3);
+  // The fragment names the families.
+  EXPECT_NE(group_fragment(two[1]).find("families: [FACE_DIAGONAL, BODY_DIAGONAL]"),
+            std::string::npos);
+}
+
+// Two cards (edges | diagonals, isotropic moduli): curves the model generated with known cards
+// are fitted back; the curve is recovered, and without noise the shapes too.
+TEST(CalibrationTest, RecoversKnownTwoCardBodies) {
+  const BodySpec spec = Phantom();
+  const ConicalCard base = spec.groups[0].card.conical;
+  FitOptions o;
+  o.cards = 2;
+  o.max_strain = 0.5;
+  o.full_iterations = -1;
+  const std::vector<CardShape> want = {{2e5, 0.2, 0.85}, {2e5 * 36 / 17, 0.1, 0.35}};
+  std::vector<double> grid;
+  for (int k = 1; k <= 200; ++k) grid.push_back(o.max_strain * 0.03 * k / 200);
+  const auto groups = split_groups(spec, {card_with_shape(base, want[0]),
+                                          card_with_shape(base, want[1])});
+  const auto truth = surrogate_force(spec, groups, grid);
+  for (double noise : {0.0, 0.01}) {
+    std::mt19937 rng(11);
+    std::normal_distribution<double> n01;
+    Curve c;
+    for (int k = 0; k < 200; ++k) c.push_back({grid[k], truth[k] * (1 + noise * n01(rng))});
+    const FitResult r = calibrate(spec, {c}, o);
+    ASSERT_EQ(r.error, "");
+    ASSERT_EQ(r.shapes.size(), 2u);
+    const auto clean = surrogate_force(spec, groups, r.grid);
+    const double curve_err = average_relative_error(r.surrogate, clean, r.first);
+    std::printf("noise %.2f: fit %.4f %%, against the truth %.4f %%; edges E %.4g taper %.3f "
+                "stroke %.3f, diagonals E %.4g taper %.3f stroke %.3f\n",
+                noise, 100 * r.surrogate_error, 100 * curve_err, r.shapes[0].modulus,
+                r.shapes[0].taper, r.shapes[0].stroke, r.shapes[1].modulus, r.shapes[1].taper,
+                r.shapes[1].stroke);
+    EXPECT_NEAR(r.moduli.anisotropy, 1, 1e-9);
+    if (noise == 0) {
+      EXPECT_LT(r.surrogate_error, 1e-3);
+      EXPECT_NEAR(r.shapes[0].modulus / want[0].modulus, 1, 0.02);
+      // the diagonals' taper and stroke trade off (they stay short of bottoming): not checked
+    } else {
+      EXPECT_LT(curve_err, 0.005);
+      EXPECT_LT(r.surrogate_error, 0.012);
+    }
+  }
+}
+
+// Two cards: fit on A1-A5, predict B1-B5 (surrogate).
+TEST(CalibrationTest, TwoCardFitOnHalfOfThePhantomTestsPredictsTheOtherHalf) {
+  const BodySpec spec = Phantom();
+  FitOptions o;
+  o.cards = 2;
+  o.full_iterations = -1;
+  for (const char* recipe : {"EF30_0T", "EF10_0T"}) {
+    const FitResult fit = calibrate(spec, Tests(recipe, 'A'), o);
+    ASSERT_EQ(fit.error, "");
+    std::vector<double> b;
+    std::string err;
+    ASSERT_TRUE(mean_curve(Tests(recipe, 'B'), fit.grid, &b, &err)) << err;
+    const double predict = average_relative_error(fit.surrogate, b, fit.first);
+    std::printf("%s, 2 cards: fit on A %.2f %%, prediction of B %.2f %%\n", recipe,
+                100 * fit.surrogate_error, 100 * predict);
+    EXPECT_LT(fit.surrogate_error, 0.11) << recipe;
+    EXPECT_LT(predict, 0.12) << recipe;
+  }
+}
+
 }  // namespace
 }  // namespace conica::lab

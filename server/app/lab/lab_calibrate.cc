@@ -22,7 +22,8 @@ void register_calibrate(CLI::App& app, Runner* run) {
     std::vector<std::string> data;
     std::string scene, out, curves, plot;
     double max_strain = 0.5, skip_strain = 0.03, rate_mm_per_min = 500;
-    int points = 50, full_iterations = 3;
+    int points = 50, full_iterations = 3, cards = 1, verify = 3;
+    bool tie_taper = false, free_moduli = false;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -37,6 +38,17 @@ void register_calibrate(CLI::App& app, Runner* run) {
   cmd->add_option("--full-iterations", o->full_iterations,
                   "Levenberg-Marquardt iterations through the full body (0: verify only, "
                   "-1: surrogate only)")
+      ->capture_default_str();
+  cmd->add_option("--cards", o->cards,
+                  "conical cards: 1 (one for all springs), 2 (edges | diagonals), 3 (edges | face "
+                  "diagonals | body diagonals)")
+      ->capture_default_str();
+  cmd->add_flag("--tie-taper", o->tie_taper, "the cards share one taper");
+  cmd->add_flag("--free-moduli", o->free_moduli,
+                "with several cards: fit every family modulus (default: tied by the lattice's "
+                "isotropy condition 4 E_edge = E_face + 8/9 E_body)");
+  cmd->add_option("--verify-candidates", o->verify,
+                  "with several cards: surrogate optima checked in the full body")
       ->capture_default_str();
   cmd->add_option("--rate-mm-per-min", o->rate_mm_per_min, "plate speed of the full-body runs")
       ->capture_default_str();
@@ -74,6 +86,10 @@ void register_calibrate(CLI::App& app, Runner* run) {
       fo.skip_strain = o->skip_strain;
       fo.points = o->points;
       fo.full_iterations = o->full_iterations;
+      fo.cards = o->cards;
+      fo.tie_taper = o->tie_taper;
+      fo.isotropic = !o->free_moduli;
+      fo.verify_candidates = o->verify;
       fo.rate = o->rate_mm_per_min * 1e-3 / 60;
       fo.progress = [](const std::string& s) {
         std::printf("%s\n", s.c_str());
@@ -84,36 +100,38 @@ void register_calibrate(CLI::App& app, Runner* run) {
         std::fprintf(stderr, "conica-lab calibrate: %s\n", r.error.c_str());
         return 2;
       }
-      SpringCard card;
-      std::string name = "fitted";
-      for (const auto& g : spec.groups)
-        if (g.card.law == LawKind::kConical) {
-          card = g.card;
-          name = g.name;
-          break;
-        }
-      card.conical = r.card;
-      const ConicalLaw law(r.card);
       char full[32] = "not run";
       if (r.full_error >= 0) std::snprintf(full, sizeof full, "%.3f %%", 100 * r.full_error);
-      char head[512];
-      std::snprintf(head, sizeof head,
-                    "# Fitted by conica-lab calibrate to %zu curve(s) up to strain %g.\n"
-                    "# Identifiable shape: E_c = K0/L0 = %.6g Pa, taper D1/D2 = %.6g, "
-                    "stroke S/L0 = %.6g (K0 = %.6g N/m, S = %.6g m).\n"
+      std::string head = "# Fitted by conica-lab calibrate to " + std::to_string(curves.size()) +
+                         " curve(s) up to strain " + std::to_string(o->max_strain) + ", " +
+                         std::to_string(r.cards.size()) + " card(s).\n";
+      char line[512];
+      for (size_t c = 0; c < r.cards.size(); ++c) {
+        const ConicalLaw law(r.cards[c]);
+        std::snprintf(line, sizeof line,
+                      "# Card %zu: E_c = K0/L0 = %.6g Pa, taper D1/D2 = %.6g, stroke S/L0 = %.6g "
+                      "(K0 = %.6g N/m, S = %.6g m).\n",
+                      c + 1, r.shapes[c].modulus, r.shapes[c].taper, r.shapes[c].stroke, law.k0(),
+                      law.stroke());
+        head += line;
+      }
+      std::snprintf(line, sizeof line,
+                    "# Lattice: C11 %.6g Pa, C12 = C44 %.6g Pa, E %.6g Pa, Poisson %.4g, Zener "
+                    "ratio 2 C44 / (C11 - C12) = %.4g (1: isotropic).\n"
                     "# Average relative error (strain >= %g): surrogate %.3f %%, full body %s.\n",
-                    curves.size(), o->max_strain, r.shape.modulus, r.shape.taper,
-                    r.shape.stroke, law.k0(), law.stroke(), o->skip_strain,
-                    100 * r.surrogate_error, full);
+                    r.moduli.c11, r.moduli.c12, r.moduli.young, r.moduli.poisson,
+                    r.moduli.anisotropy, o->skip_strain, 100 * r.surrogate_error, full);
+      head += line;
       std::ofstream out(o->out);
-      out << head << card_fragment(name, card);
+      out << head;
+      for (const auto& g : r.groups)
+        if (g.card.law == LawKind::kConical) out << group_fragment(g);
       if (!out) {
         std::fprintf(stderr, "conica-lab calibrate: cannot write %s\n", o->out.c_str());
         return 1;
       }
-      std::printf("fitted card written to %s: G %.6g Pa, d %.6g m, D1 %.6g m, D2 %.6g m, L0 %.6g m, "
-                  "n_a %.6g\n",
-                  o->out.c_str(), r.card.G, r.card.d, r.card.D1, r.card.D2, r.card.L0, r.card.n_a);
+      std::printf("fitted group(s) written to %s; lattice Zener ratio %.4g, Poisson %.4g\n",
+                  o->out.c_str(), r.moduli.anisotropy, r.moduli.poisson);
       if (!o->curves.empty()) {
         std::ofstream cv(o->curves);
         cv << "displacement_mm,data_N,surrogate_N,full_N\n";
