@@ -118,41 +118,16 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian)
     if (!p.active) continue;
     const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
     const double kc = m.probes[q].stiffness;
-    const double R2 = R * R;
     for (int i = 0; i < nn; ++i) {
-      const Vec3 u = s.x[i] - p.center;
-      const double r2 = u.squaredNorm();
-      if (r2 >= R2) continue;
-      const Vec3& nrm = m.normal[i];
-      Vec3 f;
-      Mat3 dfdc;  // d(force on probe)/dc
-      if (nrm.squaredNorm() > 0) {
-        // Surface node: it leaves the sphere inward, along -n, by s = a + sqrt(a^2 - r^2 + R^2)
-        // with a = u.n, so the probe is always pushed out of the body, even when it has slipped
-        // between surface nodes.
-        const double a = u.dot(nrm);
-        const double q = std::max(a * a - r2 + R2, 1e-12 * R2);
-        const double sq = std::sqrt(q);
-        const double depth = a + sq;
-        f = -kc * depth * nrm;  // on the node
-        const Vec3 dsdu = nrm + (a * nrm - u) / sq;
-        dfdc = -kc * nrm * dsdu.transpose();
-        if (with_jacobian && m.fixed[i] != 7) ws.contact_n[i] += std::sqrt(h * h * kc) * nrm;
-      } else {
-        // Interior node (a probe that went deep): pushed radially out of the sphere. A node at
-        // the exact centre is pushed along +z: bounded, never NaN.
-        const double r = std::sqrt(r2);
-        const Vec3 n = r > 1e-12 * R ? Vec3(u / r) : Vec3::UnitZ();
-        f = kc * (R - r) * n;
-        const Mat3 nnT = n * n.transpose();
-        dfdc = kc * (-nnT + (r > 1e-12 * R ? (R - r) / r : 0.0) * (Mat3::Identity() - nnT));
-        // Jacobian h^2 k n n^T stored as a scaled normal (two probes on one node: approximate).
-        if (with_jacobian && m.fixed[i] != 7) ws.contact_n[i] += std::sqrt(h * h * kc) * n;
-      }
+      Vec3 f, dir;
+      Mat3 dfdc;
+      if (!node_contact(s.x[i], m.normal[i], p.center, R, kc, &f, &dfdc, &dir)) continue;
       ws.force[i] += f;
       p.force -= f;
       p.stiffness += dfdc;
       ++p.contacts;
+      // Jacobian h^2 k n n^T stored as a scaled direction (two probes on one node: approximate).
+      if (with_jacobian && m.fixed[i] != 7) ws.contact_n[i] += std::sqrt(h * h * kc) * dir;
     }
   }
   for (size_t q = 0; q < m.planes.size(); ++q) {
@@ -522,6 +497,52 @@ double kinetic_energy(const Model& m, const State& s) {
   double e = 0;
   for (int i = 0; i < m.num_nodes(); ++i) e += 0.5 * m.mass[i] * s.v[i].squaredNorm();
   return e;
+}
+
+bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, double kc,
+                  Vec3* f_node, Mat3* dfdc, Vec3* dir) {
+  const Vec3 u = x - c;
+  const double r2 = u.squaredNorm(), R2 = R * R;
+  if (r2 >= R2) return false;
+  if (normal.squaredNorm() > 0) {
+    // Surface node: it leaves the sphere inward, along -n, by s = a + sqrt(a^2 - r^2 + R^2) with
+    // a = u.n, so the probe is always pushed out of the body, even when it has slipped between
+    // surface nodes.
+    const double a = u.dot(normal);
+    const double sq = std::sqrt(std::max(a * a - r2 + R2, 1e-12 * R2));
+    *f_node = -kc * (a + sq) * normal;
+    const Vec3 dsdu = normal + (a * normal - u) / sq;
+    *dfdc = -kc * normal * dsdu.transpose();
+    *dir = normal;
+  } else {
+    // Interior node (a probe that went deep): pushed radially out of the sphere. A node at the
+    // exact centre is pushed along +z: bounded, never NaN.
+    const double r = std::sqrt(r2);
+    const bool centred = !(r > 1e-12 * R);
+    const Vec3 n = centred ? Vec3::UnitZ() : Vec3(u / r);
+    *f_node = kc * (R - r) * n;
+    const Mat3 nnT = n * n.transpose();
+    *dfdc = kc * (-nnT + (centred ? 0.0 : (R - r) / r) * (Mat3::Identity() - nnT));
+    *dir = n;
+  }
+  return true;
+}
+
+void probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
+                   double radius, ProbeState* probe) {
+  probe->force.setZero();
+  probe->stiffness.setZero();
+  probe->contacts = 0;
+  const double R = radius > 0 ? radius : m.probes[k].radius;
+  const double kc = m.probes[k].stiffness;
+  for (int i = 0; i < m.num_nodes(); ++i) {
+    Vec3 f, dir;
+    Mat3 dfdc;
+    if (!node_contact(x[i], m.normal[i], center, R, kc, &f, &dfdc, &dir)) continue;
+    probe->force -= f;
+    probe->stiffness += dfdc;
+    ++probe->contacts;
+  }
 }
 
 void set_probe(State& state, int probe, const Vec3& center, bool active) {

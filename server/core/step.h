@@ -68,6 +68,19 @@ enum class StepStatus { kOk, kRolledBack };
 // zeroed), counters record it, and the tick still advances.
 StepStatus step(const Model& model, State& state, Workspace& ws);
 
+// Contact of one node at x (outward surface normal `normal`, zero inside the body) with a probe
+// sphere of radius R around c and penalty kc, by the law above. Returns false when the node is
+// outside the sphere; otherwise the force on the node, the node's share of d(probe force)/dc
+// (nodes held) and the unit direction along which the node is pushed.
+bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, double kc,
+                  Vec3* f_node, Mat3* dfdc, Vec3* dir);
+
+// The contact stage alone, for probe k as a sphere of radius `radius` (m; <= 0: the model's)
+// around `center` against node positions x: force on the probe, its stiffness and the contact
+// count, without touching the nodes. What the server answers a probe update with between ticks.
+void probe_contact(const Model& model, const std::vector<Vec3>& x, int k, const Vec3& center,
+                   double radius, ProbeState* probe);
+
 // Moves a probe (input stage). Inactive probes exert nothing.
 void set_probe(State& state, int probe, const Vec3& center, bool active = true);
 

@@ -166,10 +166,6 @@ std::string to_string(const MeshReport& r) {
   return s;
 }
 
-double tet_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-  return (b - a).dot((c - a).cross(d - a)) / 6.0;
-}
-
 double hex_volume(const std::array<Vec3, 8>& x) {
   const double g[2] = {0.5 - 0.5 / std::sqrt(3.0), 0.5 + 0.5 / std::sqrt(3.0)};
   double v = 0;

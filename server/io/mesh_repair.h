@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/body.h"
 #include "core/mesh.h"
 
 namespace conica::io {
@@ -42,9 +43,8 @@ MeshReport repair(Mesh& mesh, const RepairOptions& options = {});
 // The same report without changing the mesh.
 MeshReport inspect(const Mesh& mesh, const RepairOptions& options = {});
 
-// Signed volume of tet (a, b, c, d): V = (b - a) . ((c - a) x (d - a)) / 6, positive when d is
-// on the side of (a, b, c) that its right-hand normal points to.
-double tet_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+// Signed tetrahedron volume: the core's (core/body.h).
+using conica::tet_volume;
 
 // Volume of a trilinear hexahedron (VTK order: bottom 0-3 counter-clockwise seen from the top
 // 4-7), V = integral of det J over the unit cube; 2x2x2 Gauss points make it exact.
