@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <fstream>
@@ -76,3 +77,39 @@ TEST(LabMesh, MissingFileExitsNonZero) {
 }
 
 }  // namespace
+
+// conica-lab run: deterministic headless runs (same inputs -> same bytes) and its summary line.
+std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+TEST(LabRun, SameInputsGiveTheSameBytesAndASummary) {
+  const std::string scene = std::string(CONICA_SOURCE_DIR) + "/configs/paper-cube.pbtxt";
+  const std::string script = std::string(CONICA_SOURCE_DIR) + "/configs/probes/press-center.csv";
+  const std::string out1 = ::testing::TempDir() + "run1.csv", out2 = ::testing::TempDir() + "run2.csv";
+  const std::string args = "run --scene '" + scene + "' --probe-script '" + script +
+                           "' --relative --ticks 1500 --out ";
+  const LabRun a = run_lab(args + "'" + out1 + "'");
+  const LabRun b = run_lab(args + "'" + out2 + "'");
+  ASSERT_EQ(a.status, 0) << a.output;
+  ASSERT_EQ(b.status, 0) << b.output;
+  EXPECT_THAT(a.output, ::testing::MatchesRegex(
+                            "max \\|force\\|: [0-9.e+-]+ N, nan: 0, rollbacks: 0\n"));
+  const std::string c1 = slurp(out1), c2 = slurp(out2);
+  EXPECT_EQ(c1, c2);  // bit for bit
+  EXPECT_EQ(c1.rfind("tick,t,probe,fx,fy,fz,contact\n", 0), 0u);
+  EXPECT_EQ(std::count(c1.begin(), c1.end(), '\n'), 1501);
+  // The press reaches the body: some rows are in contact with an upward force on the probe.
+  EXPECT_THAT(c1, HasSubstr(",1\n"));
+}
+
+TEST(LabRun, BadProbeScriptNamesFileAndLine) {
+  const std::string bad = ::testing::TempDir() + "bad-script.csv";
+  std::ofstream(bad) << "t,probe,x,y,z\n0,0,0,0,0\n0.1,0,0,zero,0\n";
+  const LabRun r = run_lab("run --scene '" + std::string(CONICA_SOURCE_DIR) +
+                           "/configs/paper-cube.pbtxt' --probe-script '" + bad +
+                           "' --ticks 10 --out -");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("bad-script.csv:3: field y is not a finite number"));
+}
