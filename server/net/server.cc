@@ -61,6 +61,9 @@ constexpr int kMaxFrames = 4;           // [identity][delimiter][payload] at mos
 constexpr Clock kFinalSleepNs = 20000;  // the last stretch before a deadline: clock_nanosleep
 constexpr std::uint64_t kStatsEveryTicks = 100;  // percentile refresh period
 constexpr Clock kErrorLogPeriodNs = 10ull * 1000000000ull;
+// Messages handled per drain call: a client flooding faster than the loop can answer must not
+// hold off the tick (the caller checks its deadline between calls).
+constexpr int kDrainBudget = 64;
 
 }  // namespace
 
@@ -254,10 +257,10 @@ struct Server::Loop {
     send_reply(s, payload, error_msg);
   }
 
-  // Receives and answers every waiting probe update.
+  // Receives and answers the waiting probe updates, at most kDrainBudget of them.
   void drain_probes() {
     int n = 0;
-    while (recv_multipart(probe, &n)) {
+    for (int budget = kDrainBudget; budget > 0 && recv_multipart(probe, &n); --budget) {
       const Clock recv = now_ns();
       const int p = payload_index(n);
       DecodeError err;
@@ -288,7 +291,7 @@ struct Server::Loop {
 
   void drain_control() {
     int n = 0;
-    while (recv_multipart(control, &n)) {
+    for (int budget = kDrainBudget; budget > 0 && recv_multipart(control, &n); --budget) {
       const int p = payload_index(n);
       DecodeError err;
       if (p < 0) {

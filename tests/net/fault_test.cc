@@ -215,7 +215,7 @@ TEST_F(FaultTest, TwoThousandConnectDisconnectCycles) {
       (void)s.send(zmq::buffer(ProbeBytes(cycles + 1)), zmq::send_flags::dontwait);
     }
   }  // each socket closed with linger 0, often before its connection finished
-  std::printf("cycles: %d, sampled %d, answered %d\n", cycles, cycles / 20 + 1, answered);
+  std::printf("cycles: %d, sampled %d, answered %d\n", cycles, (cycles + 19) / 20, answered);
   EXPECT_EQ(cycles, 2000) << "cycles did not finish within 90 s";
   EXPECT_GE(answered, cycles / 20 - 2) << "sampled cycles went unanswered";
   ExpectServed();
@@ -247,22 +247,29 @@ TEST_F(FaultTest, ProbeFloodAtAbout100kHzLeavesOthersServed) {
   });
   zmq::socket_t good = Dealer(ctx_, ep);
   int asked = 0, answered = 0;
+  const std::uint64_t ticks_before = server_->stats().ticks;
   std::this_thread::sleep_for(milliseconds(100));
   while (!done && asked < 200) {
     ++asked;
     answered += Ask(good, ProbeBytes(1000000 + asked), 1000000 + asked, false, 2000).has_value();
     std::this_thread::sleep_for(milliseconds(5));
   }
+  // The loop must keep ticking during the flood: each drain handles a bounded number of
+  // messages before the loop looks at its deadline again (stats() is refreshed every 100 ticks).
+  while (!done) std::this_thread::sleep_for(milliseconds(5));
+  const std::uint64_t ticks_during = server_->stats().ticks - ticks_before;
   flooder.join();
   const LoopStatsData st = server_->stats();
+  EXPECT_GE(ticks_during, 30u) << "a flooding client held off the tick";  // unbounded drain: 8
   std::printf("flood: sent %llu in 2 s, server received %llu probes, %d of %d others answered, "
-              "%llu missed ticks of %llu\n",
+              "%llu ticks during the flood, %llu missed ticks of %llu\n",
               static_cast<unsigned long long>(sent.load()),
               static_cast<unsigned long long>(st.probes_received), answered, asked,
+              static_cast<unsigned long long>(ticks_during),
               static_cast<unsigned long long>(st.missed_ticks),
               static_cast<unsigned long long>(st.ticks));
   EXPECT_GT(sent.load(), 50000u) << "the flood did not reach 25 kHz";
-  EXPECT_GT(st.probes_received, 20000u);
+  EXPECT_GT(st.probes_received, 5000u) << "the flood did not reach the server";
   EXPECT_GE(answered, asked * 9 / 10) << answered << " of " << asked << " answered during the flood";
   EXPECT_GT(asked, 5);
   ExpectServed();
