@@ -72,6 +72,10 @@ struct SolverOptions {
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
   double min_length_fraction = 0.05;  // hard stop: no spring shorter than this x l0
   bool hard_stop = true;         // off only to show what happens without it
+  // Active region (symplectic and explicit Euler): only nodes a probe can move by more than
+  // active_tolerance are integrated; the rest sleep at their state (see step.h).
+  bool active_region = false;
+  double active_tolerance = 1e-5;  // m, displacement tolerance that sizes the region
   double max_speed = 50;         // m/s: guard: faster nodes mean the step blew up
 };
 
@@ -145,6 +149,7 @@ struct Counters {
   std::uint64_t speed_events = 0;   // a node faster than options.max_speed
   std::uint64_t hard_stops = 0;     // springs projected back to their minimum length
   std::uint64_t cg_iterations = 0;  // total, implicit only
+  std::uint64_t awake_nodes = 0;    // active region: nodes integrated in the last tick
 };
 
 struct State {

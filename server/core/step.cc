@@ -1,5 +1,7 @@
 #include "core/step.h"
 
+#include "core/body.h"
+
 #include <Eigen/LU>
 
 #include <algorithm>
@@ -151,8 +153,49 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian)
   }
 }
 
+// Forces of the active region only: springs with an awake end, one at a time (scalar law). Sleeping
+// nodes on the region's boundary collect the pull of the awake springs; one pulled harder than the
+// tolerance is marked to wake.
+void forces_active(const Model& m, State& s, Workspace& ws) {
+  const int nn = m.num_nodes();
+  const double mu = m.options.mass_damping;
+  for (int i = 0; i < nn; ++i)
+    ws.force[i] = ws.awake[i] ? Vec3(m.mass[i] * (m.options.gravity - mu * s.v[i])) : Vec3::Zero();
+  for (int q = 0; q < ws.num_active; ++q) {
+    const int k = ws.active[q];
+    const int i = m.spring_i[k], j = m.spring_j[k];
+    const Vec3 u = s.x[j] - s.x[i];
+    const double l = u.norm();
+    const Vec3 d = u / std::max(l, 1e-300);
+    ws.ux[k] = d.x();
+    ws.uy[k] = d.y();
+    ws.uz[k] = d.z();
+    ws.length[k] = l;
+    const double delta = m.deflection_scale[k] * (m.rest_length[k] - l);
+    ws.deflection[k] = delta;
+    const SpringGroup& g = m.groups[ws.spring_group[k]];
+    double load = g.law ? g.law->evaluate(delta).force : g.card.hooke_k * delta;
+    if (g.viscous) {
+      const double ddot = -m.deflection_scale[k] * d.dot(s.v[j] - s.v[i]);
+      load += g.card.damping * ddot + g.card.maxwell_k * (delta - s.maxwell[k]);
+    }
+    ws.load[k] = load;
+    const Vec3 f = m.force_scale[k] * load * d;
+    ws.force[i] -= f;
+    ws.force[j] += f;
+  }
+  const double f_tol = ws.node_stiffness * m.options.active_tolerance;
+  for (int i = 0; i < nn; ++i)
+    if (!ws.awake[i] && m.fixed[i] != 7 && ws.force[i].squaredNorm() > f_tol * f_tol) ws.wake[i] = 1;
+}
+
 void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
   const int nn = m.num_nodes();
+  if (m.options.active_region && ws.num_active >= 0 && !with_jacobian) {
+    forces_active(m, s, ws);
+    contact_forces(m, s, ws, false);
+    return;
+  }
   spring_loads(m, s, ws);
   const double mu = m.options.mass_damping;
   for (int i = 0; i < nn; ++i) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
@@ -189,6 +232,17 @@ void relax_maxwell(const Model& m, State& s, double h) {
 // Projects springs shorter than their minimum length back to it (mass-weighted) and removes the
 // approaching part of their relative velocity.
 void hard_stop(const Model& m, State& s, Workspace& ws) {
+  if (m.options.active_region && ws.num_active >= 0 &&
+      m.options.integrator != Integrator::kImplicitEuler) {
+    // Only springs with an awake end can have moved.
+    int n = 0;
+    for (int q = 0; q < ws.num_active; ++q) {
+      const int k = ws.active[q];
+      n += (s.x[m.spring_j[k]] - s.x[m.spring_i[k]]).dot(ws.dir(k)) < ws.min_length[k];
+    }
+    if (n > 0) hard_stop_project(m, s, ws);
+    return;
+  }
   if (count_short(m.num_springs(), s.x.front().data(), m.spring_i.data(), m.spring_j.data(),
                   ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.min_length.data()) > 0)
     hard_stop_project(m, s, ws);
@@ -222,7 +276,7 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
   forces_impl(m, s, ws, false);
   const int nn = m.num_nodes();
   for (int i = 0; i < nn; ++i) {
-    if (m.fixed[i] == 7) continue;
+    if (m.fixed[i] == 7 || !ws.awake[i]) continue;
     const Vec3 a = (ws.force[i] * m.inv_mass[i]).cwiseProduct(m.free_axes[i]);
     if (symplectic) {
       s.v[i] += h * a;   // eq. (22)
@@ -436,6 +490,31 @@ Workspace::Workspace(const Model& m) {
   contact_n.assign(nn, Vec3::Zero());
   for (auto* v : {&x0, &v0, &rhs, &r, &z, &p, &ap, &dx, &good_x, &good_v}) v->assign(nn, Vec3::Zero());
   good_maxwell.assign(ns, 0);
+  // Active region: everything awake until the first tick chooses.
+  awake.assign(nn, 1);
+  wake.assign(nn, 0);
+  active.assign(ns, 0);
+  spring_group.assign(ns, 0);
+  for (size_t g = 0; g < m.groups.size(); ++g)
+    for (int k = m.groups[g].begin; k < m.groups[g].end; ++k) spring_group[k] = static_cast<int>(g);
+  // Network modulus E = sum(k_ax l0^2) / (6 V) (isotropic central-force network, nu = 1/4) and the
+  // mean axial stiffness per node, from the initial (linear-phase) stiffness of every spring.
+  double volume = 0, kl2 = 0, ksum = 0;
+  for (const auto& t : m.tetrahedra)
+    volume += std::abs(tet_volume(m.rest[t[0]], m.rest[t[1]], m.rest[t[2]], m.rest[t[3]]));
+  Mesh hexes;
+  hexes.nodes = m.rest;
+  for (const auto& h : m.hexahedra) volume += std::abs(hex_volume(hexes, h));
+  for (const SpringGroup& g : m.groups) {
+    const double k0 = g.law ? g.law->k0() : g.card.hooke_k;
+    for (int k = g.begin; k < g.end; ++k) {
+      const double kax = m.force_scale[k] * m.deflection_scale[k] * k0;
+      kl2 += kax * m.rest_length[k] * m.rest_length[k];
+      ksum += kax;
+    }
+  }
+  modulus = volume > 0 ? kl2 / (6 * volume) : 1.0;
+  node_stiffness = nn > 0 ? 2 * ksum / nn : 1.0;
   for (const SpringGroup& g : m.groups) {
     for (int k = g.begin; k < g.end; ++k) {
       const double l0 = m.rest_length[k];
@@ -550,7 +629,53 @@ void set_probe(State& state, int probe, const Vec3& center, bool active) {
   state.probes[probe].active = active;
 }
 
+// Chooses the awake nodes for this tick (see step.h) and rebuilds the active spring list when the
+// set changed.
+void update_region(const Model& m, State& s, Workspace& ws) {
+  const int nn = m.num_nodes();
+  constexpr double kNu = 0.25;
+  bool changed = ws.num_active < 0;
+  double R[8], Rsleep[8];
+  Vec3 c[8];
+  int np = 0;
+  for (size_t q = 0; q < m.probes.size() && np < 8; ++q) {
+    const ProbeState& p = s.probes[q];
+    if (!p.active) continue;
+    const double rp = p.radius > 0 ? p.radius : m.probes[q].radius;
+    const double boussinesq =
+        p.force.norm() * (1 - kNu * kNu) / (M_PI * ws.modulus * m.options.active_tolerance);
+    R[np] = std::max(2 * rp, rp + boussinesq);
+    Rsleep[np] = 1.25 * R[np];
+    c[np++] = p.center;
+  }
+  int awake_count = 0;
+  for (int i = 0; i < nn; ++i) {
+    bool near = false, keep = false;
+    for (int q = 0; q < np; ++q) {
+      const double d2 = (s.x[i] - c[q]).squaredNorm();
+      near |= d2 < R[q] * R[q];
+      keep |= d2 < Rsleep[q] * Rsleep[q];
+    }
+    const std::uint8_t now = near || ws.wake[i] || (ws.awake[i] && keep);
+    if (now != ws.awake[i]) {
+      changed = true;
+      if (!now) s.v[i].setZero();  // falls asleep at its state
+      ws.awake[i] = now;
+    }
+    ws.wake[i] = 0;
+    awake_count += now;
+  }
+  s.counters.awake_nodes = awake_count;
+  if (!changed) return;
+  int n = 0;
+  for (int k = 0; k < m.num_springs(); ++k)
+    if (ws.awake[m.spring_i[k]] || ws.awake[m.spring_j[k]]) ws.active[n++] = k;
+  ws.num_active = n;
+}
+
 StepStatus step(const Model& m, State& s, Workspace& ws) {
+  const bool region = m.options.active_region && m.options.integrator != Integrator::kImplicitEuler;
+  if (region) update_region(m, s, ws);
   std::copy(s.x.begin(), s.x.end(), ws.good_x.begin());
   std::copy(s.v.begin(), s.v.end(), ws.good_v.begin());
   std::copy(s.maxwell.begin(), s.maxwell.end(), ws.good_maxwell.begin());

@@ -22,6 +22,15 @@
 // penalty of this form is not conservative in tangential motion, which the energy checks allow.
 // Rigid planes {n.x >= offset}: f_node = k_p (offset - n.x) n for nodes behind the plane.
 //
+// Active region (options.active_region, explicit integrators): a probe pressing with force P moves
+// the surface of an elastic half-space by about u(r) = P (1 - nu^2) / (pi E r) at distance r
+// (Boussinesq), so nodes farther than R = P (1 - nu^2) / (pi E eps) move less than the tolerance
+// eps. Nodes within max(R, 2 probe radii) of an active probe are awake; they fall asleep (velocity
+// zeroed, position kept) beyond 1.25 R, and a sleeping node wakes when the springs of the awake
+// region pull on it with more than k_node eps (k_node: mean axial stiffness per node). Only springs
+// with an awake end are evaluated. E is the network's isotropic estimate sum(k l0^2) / (6 V),
+// nu = 1/4.
+//
 // Solid height: the law's stiffness cap (ConicalLaw) keeps k_t finite, and a hard stop projects
 // any spring shorter than max(l0 - S/b, min_length_fraction l0) back to that length, removing
 // the approaching relative velocity. The implicit solver's line search never takes a Newton step
@@ -48,6 +57,13 @@ struct Workspace {
   std::vector<Mat3> diag_inv;                     // (num_nodes) block-Jacobi preconditioner
   std::vector<Vec3> contact_n;                    // (num_nodes) contact normal * sqrt(h^2 k)
   std::vector<Vec3> x0, v0, rhs, r, z, p, ap, dx; // (num_nodes)
+  // Active region.
+  std::vector<std::uint8_t> awake, wake;          // (num_nodes)
+  std::vector<int> active;                        // (num_springs) springs with an awake end
+  std::vector<int> spring_group;                  // (num_springs) group of each spring
+  int num_active = -1;                            // -1: region not built yet
+  double modulus = 0;                             // Pa, network estimate
+  double node_stiffness = 0;                      // N/m, mean axial stiffness per node
   // Last good state for rollback.
   std::vector<Vec3> good_x, good_v;
   std::vector<double> good_maxwell;

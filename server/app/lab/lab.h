@@ -17,6 +17,7 @@ void register_law(CLI::App& app, Runner* run);
 void register_mesh(CLI::App& app, Runner* run);
 void register_run(CLI::App& app, Runner* run);
 void register_stability(CLI::App& app, Runner* run);
+void register_active_region(CLI::App& app, Runner* run);
 void register_compress(CLI::App& app, Runner* run);
 void register_calibrate(CLI::App& app, Runner* run);
 void register_viscoelastic(CLI::App& app, Runner* run);

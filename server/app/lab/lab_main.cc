@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
   conica::lab::register_mesh(app, &run);
   conica::lab::register_run(app, &run);
   conica::lab::register_stability(app, &run);
+  conica::lab::register_active_region(app, &run);
   conica::lab::register_compress(app, &run);
   conica::lab::register_calibrate(app, &run);
   conica::lab::register_viscoelastic(app, &run);

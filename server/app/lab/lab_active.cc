@@ -1,0 +1,116 @@
+// conica-lab active-region: the same probe path with and without the active region; ends with
+// "force error: X %, speedup: Y x" (force error: largest difference of probe force over the
+// largest full-simulation probe force; speedup: total step time without / with).
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include "app/lab/lab.h"
+#include "core/step.h"
+#include "io/probe_script.h"
+#include "io/scene.h"
+
+namespace conica::lab {
+
+void register_active_region(CLI::App& app, Runner* run) {
+  struct Opts {
+    std::string scene, script;
+    long ticks = 2000;
+    bool relative = false;
+    double tolerance = 1e-5;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* cmd = app.add_subcommand(
+      "active-region", "Compare a probe path with and without the active region");
+  cmd->add_option("--scene", o->scene, "scene file (.pbtxt)")->required();
+  cmd->add_option("--probe-script", o->script, "CSV t,probe,x,y,z (s, index, m)")->required();
+  cmd->add_option("--ticks", o->ticks, "number of ticks")->capture_default_str();
+  cmd->add_option("--tolerance", o->tolerance, "displacement tolerance sizing the region, m")
+      ->capture_default_str();
+  cmd->add_flag("--relative", o->relative, "x, y, z are fractions of the bounding box");
+  cmd->callback([o, run] {
+    *run = [o]() -> int {
+      auto loaded = io::load_model(o->scene);
+      if (!loaded) {
+        std::fprintf(stderr, "conica-lab active-region: %s\n", loaded.error().c_str());
+        return 2;
+      }
+      auto script = io::read_probe_script(o->script);
+      if (!script) {
+        std::fprintf(stderr, "conica-lab active-region: %s\n", script.error().c_str());
+        return 2;
+      }
+      Model full = loaded.value();
+      if (full.options.integrator == Integrator::kImplicitEuler) {
+        std::fprintf(stderr, "conica-lab active-region: the active region applies to symplectic "
+                             "and explicit Euler; %s uses implicit Euler\n", o->scene.c_str());
+        return 2;
+      }
+      io::ProbeScript& ps = script.value();
+      if (ps.probes.size() > full.probes.size()) {
+        std::fprintf(stderr, "conica-lab active-region: the script drives more probes than the "
+                             "scene has\n");
+        return 2;
+      }
+      if (o->relative) {
+        Vec3 lo = full.rest[0], hi = full.rest[0];
+        for (const Vec3& x : full.rest) {
+          lo = lo.cwiseMin(x);
+          hi = hi.cwiseMax(x);
+        }
+        io::make_absolute(ps, lo, hi);
+      }
+      Model active = full;
+      active.options.active_region = true;
+      active.options.active_tolerance = o->tolerance;
+      struct Run {
+        std::vector<Vec3> force;  // (ticks x probes)
+        double seconds = 0;
+        std::uint64_t awake_sum = 0, rollbacks = 0;
+      };
+      auto drive = [&](const Model& m) {
+        Run r;
+        State s = make_state(m);
+        Workspace ws(m);
+        for (long k = 0; k < o->ticks; ++k) {
+          for (size_t p = 0; p < ps.probes.size(); ++p) {
+            Vec3 x;
+            const bool present = ps.position(static_cast<int>(p), s.time, &x);
+            set_probe(s, static_cast<int>(p), present ? x : s.probes[p].center, present);
+          }
+          const auto t0 = std::chrono::steady_clock::now();
+          step(m, s, ws);
+          r.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          for (const ProbeState& p : s.probes) r.force.push_back(p.force);
+          r.awake_sum += m.options.active_region ? s.counters.awake_nodes : m.num_nodes();
+        }
+        r.rollbacks = s.counters.rollbacks;
+        return r;
+      };
+      const Run a = drive(full), b = drive(active);
+      double fmax = 0, err = 0, err_at_peak = 0;
+      for (size_t k = 0; k < a.force.size(); ++k) {
+        if (a.force[k].norm() > fmax) {
+          fmax = a.force[k].norm();
+          err_at_peak = (a.force[k] - b.force[k]).norm();
+        }
+        err = std::max(err, (a.force[k] - b.force[k]).norm());
+      }
+      std::printf("scene %s: %d nodes, %d springs, %ld ticks\n", o->scene.c_str(),
+                  full.num_nodes(), full.num_springs(), o->ticks);
+      std::printf("full:   %.1f us per step, peak probe force %.4g N, rollbacks %lu\n",
+                  1e6 * a.seconds / o->ticks, fmax, (unsigned long)a.rollbacks);
+      std::printf("active: %.1f us per step, mean awake nodes %.0f (%.1f %%), rollbacks %lu\n",
+                  1e6 * b.seconds / o->ticks, double(b.awake_sum) / o->ticks,
+                  100.0 * b.awake_sum / (double(o->ticks) * full.num_nodes()),
+                  (unsigned long)b.rollbacks);
+      std::printf("at the peak force: error %.3g %%\n", fmax > 0 ? 100 * err_at_peak / fmax : 0.0);
+      std::printf("force error: %.3g %%, speedup: %.2f x\n", fmax > 0 ? 100 * err / fmax : 0.0,
+                  a.seconds / b.seconds);
+      return 0;
+    };
+  });
+}
+
+}  // namespace conica::lab
