@@ -138,34 +138,38 @@ async function main() {
     const rest = s1.maxDisplacement;
     log(`before the press: max displacement ${(rest * 1e3).toFixed(3)} mm`);
 
-    // press: the scripted probe, in real time, while the page is watched
-    const probeArgs = ['--endpoint', ep(pp), '--script', 'press', '--depth', args.depth,
-      '--hold', '3', '--realtime', '-o', path.join(tmp, 'press.csv')];
-    if (args.at) probeArgs.push('--at', args.at);
-    if (args.axis) probeArgs.push('--axis', args.axis);
-    const probe = start('probe', args.probe, probeArgs, {}, path.join(tmp, 'probe.log'));
-    let peak = 0, shot = false, contactSeen = false;
-    const end = Date.now() + 30000;
-    while (Date.now() < end && probe.exitCode === null) {
-      // the page's own peak: it sees every frame it shows, however slowly it draws
-      const s = await page.evaluate(() => ({ d: window.conica.maxDisplacement,
-        peak: window.conica.peakDisplacement, contact: window.conica.probes.some((p) => p.contact) }));
-      peak = Math.max(peak, s.peak);
-      contactSeen ||= s.contact;
-      if (!shot && s.contact && s.d > 1e-4) {
-        await sleep(1200);  // into the hold
-        if (args.screenshot) {
-          fs.mkdirSync(path.dirname(args.screenshot), { recursive: true });
-          await page.screenshot({ path: args.screenshot });
-          log(`screenshot ${args.screenshot}`);
+    // press: the scripted probe, in real time, while the page is watched. On a loaded machine the
+    // page may draw too rarely to catch a press; one more press is allowed before failing.
+    let peak = 0, shot = false, contactSeen = false, code = null;
+    for (let attempt = 1; attempt <= 2 && !(contactSeen && peak > rest + 1e-4); ++attempt) {
+      if (attempt > 1) log('the page did not see the press: pressing once more');
+      const probeArgs = ['--endpoint', ep(pp), '--script', 'press', '--depth', args.depth,
+        '--hold', '3', '--realtime', '-o', path.join(tmp, `press${attempt}.csv`)];
+      if (args.at) probeArgs.push('--at', args.at);
+      if (args.axis) probeArgs.push('--axis', args.axis);
+      const probe = start('probe', args.probe, probeArgs, {}, path.join(tmp, `probe${attempt}.log`));
+      const end = Date.now() + 30000;
+      while (Date.now() < end && probe.exitCode === null) {
+        // the page's own peak: it sees every frame it shows, however slowly it draws
+        const s = await page.evaluate(() => ({ d: window.conica.maxDisplacement,
+          peak: window.conica.peakDisplacement, contact: window.conica.probes.some((p) => p.contact) }));
+        peak = Math.max(peak, s.peak);
+        contactSeen ||= s.contact;
+        if (!shot && s.contact && s.d > 1e-4) {
+          await sleep(1200);  // into the hold
+          if (args.screenshot) {
+            fs.mkdirSync(path.dirname(args.screenshot), { recursive: true });
+            await page.screenshot({ path: args.screenshot });
+            log(`screenshot ${args.screenshot}`);
+          }
+          shot = true;
         }
-        shot = true;
+        await sleep(50);
       }
-      await sleep(50);
+      code = await Promise.race([probe.exited, sleep(10000).then(() => 'timeout')]);
+      await sleep(500);  // the last frames of the hold reach the page
+      peak = Math.max(peak, await page.evaluate(() => window.conica.peakDisplacement));
     }
-    const code = await Promise.race([probe.exited, sleep(10000).then(() => 'timeout')]);
-    await sleep(500);  // the last frames of the hold reach the page
-    peak = Math.max(peak, await page.evaluate(() => window.conica.peakDisplacement));
     check(code === 0, `conica-probe press exits 0 (${code})`);
     check(contactSeen, 'the page saw the probe in contact');
     check(peak > 0 && peak > rest + 1e-4,
