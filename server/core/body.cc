@@ -377,6 +377,33 @@ std::string build_model(const BodySpec& spec, Model* out) {
   return {};
 }
 
+Model make_spring_pair(const SpringCard& card, double l0, double mass, const SolverOptions& options) {
+  Model m;
+  m.rest = {Vec3::Zero(), Vec3(0, 0, l0)};
+  m.mass = {mass, mass};
+  m.fixed = {7, 3};
+  m.inv_mass = {0.0, 1.0 / mass};
+  m.free_axes = {Vec3::Zero(), Vec3(0, 0, 1)};
+  m.normal = {Vec3::Zero(), Vec3::Zero()};
+  m.spring_i = {0};
+  m.spring_j = {1};
+  m.rest_length = {l0};
+  m.force_scale = {1.0};
+  m.deflection_scale = {1.0};
+  SpringGroup g;
+  g.name = "spring";
+  g.card = card;
+  if (card.law == LawKind::kConical)
+    g.law.emplace(card.conical, card.stiffness_cap * ConicalLaw(card.conical).k0());
+  g.viscous = card.damping > 0 || card.maxwell_k > 0;
+  g.begin = 0;
+  g.end = 1;
+  m.groups = {g};
+  m.options = options;
+  m.mapping = Mapping::kRaw;
+  return m;
+}
+
 State make_state(const Model& model) {
   State s;
   s.x = model.rest;

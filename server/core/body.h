@@ -64,6 +64,11 @@ Mesh make_cylinder_lattice(double radius, double height, int cells_across, int c
 double tet_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 double hex_volume(const Mesh& mesh, const std::array<int, 8>& h);
 
+// Two nodes on the z axis joined by one spring of `card` (raw mapping): node 0 fixed at the
+// origin, node 1 at z = l0 (m) free along z only, each of `mass` kg. For single-spring experiments
+// against analytic values. Precondition: a valid card.
+Model make_spring_pair(const SpringCard& card, double l0, double mass, const SolverOptions& options);
+
 // Builds the model. Returns an empty string on success, otherwise what is wrong (negative
 // density, invalid card in group "x": ..., group "y" matches no spring, N springs match no
 // group, zero-length spring, fixed selector matches no node, ...).

@@ -14,33 +14,11 @@ namespace {
 
 constexpr double kG = 9.81;
 
-// Two nodes on the z axis joined by one spring (raw mapping): node 0 fixed at the origin, node 1
-// at z = l0, free along z only.
 Model OneSpring(const SpringCard& card, double l0, double mass, Integrator integ, double dt) {
-  Model m;
-  m.rest = {Vec3::Zero(), Vec3(0, 0, l0)};
-  m.mass = {mass, mass};
-  m.fixed = {7, 3};
-  m.inv_mass = {0.0, 1.0 / mass};
-  m.free_axes = {Vec3::Zero(), Vec3(0, 0, 1)};
-  m.spring_i = {0};
-  m.spring_j = {1};
-  m.rest_length = {l0};
-  m.force_scale = {1.0};
-  m.deflection_scale = {1.0};
-  SpringGroup g;
-  g.name = "s";
-  g.card = card;
-  if (card.law == LawKind::kConical)
-    g.law.emplace(card.conical, card.stiffness_cap * ConicalLaw(card.conical).k0());
-  g.viscous = card.damping > 0 || card.maxwell_k > 0;
-  g.begin = 0;
-  g.end = 1;
-  m.groups = {g};
-  m.options.integrator = integ;
-  m.options.dt = dt;
-  m.mapping = Mapping::kRaw;
-  return m;
+  SolverOptions o;
+  o.integrator = integ;
+  o.dt = dt;
+  return make_spring_pair(card, l0, mass, o);
 }
 
 SpringCard ConicalSI() {
