@@ -89,13 +89,25 @@ double tet_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
 }
 
 double hex_volume(const Mesh& mesh, const std::array<int, 8>& h) {
+  return hex_volume(mesh.nodes, h);
+}
+
+double body_volume(const Model& model) {
+  const std::vector<Vec3>& x = model.rest;
+  double v = 0;
+  for (const auto& t : model.tetrahedra) v += std::abs(tet_volume(x[t[0]], x[t[1]], x[t[2]], x[t[3]]));
+  for (const auto& h : model.hexahedra) v += std::abs(hex_volume(x, h));
+  return v;
+}
+
+double hex_volume(const std::vector<Vec3>& nodes, const std::array<int, 8>& h) {
   // Six tetrahedra around the diagonal 0-6.
   static constexpr int kTets[6][4] = {{0, 1, 2, 6}, {0, 2, 3, 6}, {0, 3, 7, 6},
                                       {0, 7, 4, 6}, {0, 4, 5, 6}, {0, 5, 1, 6}};
   double v = 0;
   for (const auto& t : kTets)
-    v += tet_volume(mesh.nodes[h[t[0]]], mesh.nodes[h[t[1]]], mesh.nodes[h[t[2]]],
-                    mesh.nodes[h[t[3]]]);
+    v += tet_volume(nodes[h[t[0]]], nodes[h[t[1]]], nodes[h[t[2]]],
+                    nodes[h[t[3]]]);
   return v;
 }
 

@@ -63,6 +63,10 @@ Mesh make_cylinder_lattice(double radius, double height, int cells_across, int c
 // the sum of its decomposition into six tetrahedra.
 double tet_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 double hex_volume(const Mesh& mesh, const std::array<int, 8>& h);
+double hex_volume(const std::vector<Vec3>& nodes, const std::array<int, 8>& h);
+
+// Rest volume of a model's elements (m^3): the sum of |volume| over tetrahedra and hexahedra.
+double body_volume(const Model& model);
 
 // Two nodes on the z axis joined by one spring of `card` (raw mapping): node 0 fixed at the
 // origin, node 1 at z = l0 (m) free along z only, each of `mass` kg. For single-spring experiments

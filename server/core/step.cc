@@ -499,12 +499,8 @@ Workspace::Workspace(const Model& m) {
     for (int k = m.groups[g].begin; k < m.groups[g].end; ++k) spring_group[k] = static_cast<int>(g);
   // Network modulus E = sum(k_ax l0^2) / (6 V) (isotropic central-force network, nu = 1/4) and the
   // mean axial stiffness per node, from the initial (linear-phase) stiffness of every spring.
-  double volume = 0, kl2 = 0, ksum = 0;
-  for (const auto& t : m.tetrahedra)
-    volume += std::abs(tet_volume(m.rest[t[0]], m.rest[t[1]], m.rest[t[2]], m.rest[t[3]]));
-  Mesh hexes;
-  hexes.nodes = m.rest;
-  for (const auto& h : m.hexahedra) volume += std::abs(hex_volume(hexes, h));
+  const double volume = body_volume(m);
+  double kl2 = 0, ksum = 0;
   for (const SpringGroup& g : m.groups) {
     const double k0 = g.law ? g.law->k0() : g.card.hooke_k;
     for (int k = g.begin; k < g.end; ++k) {

@@ -48,28 +48,10 @@ double plate_height(const Model& model) {
   return hi - lo;
 }
 
-double cross_section(const Model& model) {
-  Mesh mesh;
-  mesh.nodes = model.rest;
-  double v = 0;
-  for (const auto& h : model.hexahedra) v += std::abs(hex_volume(mesh, h));
-  for (const auto& t : model.tetrahedra)
-    v += std::abs(tet_volume(model.rest[t[0]], model.rest[t[1]], model.rest[t[2]], model.rest[t[3]]));
-  return v / plate_height(model);
-}
-
-Curve compression_curve(const Model& model, double rate, double to_strain, int samples,
-                        CompressionStats* stats) {
-  Model m = model;
-  PlaneSpec& plate = m.planes.at(0);
-  const Vec3 n = plate.normal;
-  const auto [lo, hi] = extent(m, n);
-  const double travel = to_strain * (hi - lo);
-
-  // A rigid plate: penalty well above the springs' axial stiffness.
+double rigid_plate_stiffness(const Model& m, bool with_maxwell) {
   double k_mean = 0;
   for (const SpringGroup& g : m.groups) {
-    const double k0 = g.card.k0();
+    const double k0 = g.card.k0() + (with_maxwell ? g.card.maxwell_k : 0.0);
     for (int k = g.begin; k < g.end; ++k) k_mean += m.force_scale[k] * m.deflection_scale[k] * k0;
   }
   k_mean /= std::max(1, m.num_springs());
@@ -82,7 +64,21 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
     const double h = m.options.dt / m.options.substeps;
     k_plate = std::min(k_plate, m_min / (h * h));
   }
-  plate.stiffness = std::max(plate.stiffness, k_plate);
+  return k_plate;
+}
+
+double cross_section(const Model& model) { return body_volume(model) / plate_height(model); }
+
+Curve compression_curve(const Model& model, double rate, double to_strain, int samples,
+                        CompressionStats* stats) {
+  Model m = model;
+  PlaneSpec& plate = m.planes.at(0);
+  const Vec3 n = plate.normal;
+  const auto [lo, hi] = extent(m, n);
+  const double travel = to_strain * (hi - lo);
+
+  // A rigid plate: penalty well above the springs' axial stiffness.
+  plate.stiffness = std::max(plate.stiffness, rigid_plate_stiffness(m, false));
 
   State s = make_state(m);
   s.planes[0].offset = lo;  // touching the body's top

@@ -32,6 +32,11 @@ using Curve = std::vector<CurvePoint>;
 // Returns true when it added one.
 bool ensure_top_plate(BodySpec* spec);
 
+// Penalty stiffness (N/m per node) that makes a plate rigid against `model`'s springs: 1e4 x
+// their mean axial stiffness (each card's K0, plus its Maxwell branch when `with_maxwell`),
+// capped for explicit integrators so that omega h <= 1 on the lightest node.
+double rigid_plate_stiffness(const Model& model, bool with_maxwell);
+
 // Height of the body along plane 0's normal (m): the spread of n.x over the rest nodes.
 // Precondition: the model has a plane.
 double plate_height(const Model& model);

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "core/step.h"
+#include "lab/compression.h"
 
 namespace conica::lab {
 namespace {
@@ -19,22 +20,7 @@ struct Rig {
     n = plate.normal;
     lo = std::numeric_limits<double>::infinity();
     for (const Vec3& x : m.rest) lo = std::min(lo, n.dot(x));
-    double k_mean = 0;
-    for (const SpringGroup& g : m.groups) {
-      const double k0 = g.card.k0() + g.card.maxwell_k;
-      for (int k = g.begin; k < g.end; ++k)
-        k_mean += m.force_scale[k] * m.deflection_scale[k] * k0;
-    }
-    k_mean /= std::max(1, m.num_springs());
-    double k_plate = 1e4 * k_mean;
-    if (m.options.integrator != Integrator::kImplicitEuler) {
-      double m_min = std::numeric_limits<double>::infinity();
-      for (int i = 0; i < m.num_nodes(); ++i)
-        if (m.mass[i] > 0) m_min = std::min(m_min, m.mass[i]);
-      const double h = m.options.dt / m.options.substeps;
-      k_plate = std::min(k_plate, m_min / (h * h));
-    }
-    plate.stiffness = std::max(plate.stiffness, k_plate);
+    plate.stiffness = std::max(plate.stiffness, rigid_plate_stiffness(m, true));
     s = make_state(m);
     s.planes[0].offset = lo;
   }
