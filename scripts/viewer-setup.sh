@@ -9,20 +9,15 @@ cd "$(dirname "$0")/.."
 
 if [[ "${1:-}" != "--no-apt" ]]; then
   PACKAGES=(chromium nodejs npm python3-websockets python3-zmq python3-protobuf)
-  missing=()
+  wanted=()
   for p in "${PACKAGES[@]}"; do
     # node and npm may come from elsewhere than Debian: keep them if they work
     if [[ $p == nodejs ]] && command -v node >/dev/null; then continue; fi
     if [[ $p == npm ]] && command -v npm >/dev/null; then continue; fi
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+    wanted+=("$p")
   done
-  if ((${#missing[@]})); then
-    SUDO=""
-    [[ $(id -u) -ne 0 ]] && SUDO="sudo"
-    echo "viewer-setup: installing ${missing[*]}"
-    $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
-  fi
+  source scripts/apt-ensure.sh
+  apt_ensure viewer-setup "${wanted[@]}"
 fi
 
 cd viewer
