@@ -5,6 +5,12 @@ Connects a DEALER to the server's probe ROUTER, sends one ProbeUpdate per step (
 metres), waits for the ForceReply and writes t,probe,seq,x,y,z,fx,fy,fz,contact,rtt_us.
 
     PYTHONPATH=build/proto/gen /usr/bin/python3 clients/python/probe.py --out press.csv
+
+Against a CURVE server (conica-server --curve-server-key K --curve-clients DIR) give the
+server's public key file and this client's key pair file, both as written by
+conica-server --generate-keys DIR --key-name NAME (the server lists NAME.pub):
+
+    ... probe.py --curve-server-pub keys/server.pub --curve-key keys/alice.key
 """
 import argparse
 import csv
@@ -12,8 +18,65 @@ import sys
 import time
 
 import zmq
+from zmq.utils import z85
 
 from conica.v1 import messages_pb2 as pb
+
+
+class KeyFileError(Exception):
+    pass
+
+
+def read_key_file(path):
+    """The keys of a conica key file ("public <z85>" / "secret <z85>" lines, '#' comments) as
+    {"public": ..., "secret": ...} (bytes, z85); KeyFileError names the file, line and problem."""
+    try:
+        with open(path, encoding="ascii", errors="replace") as f:
+            lines = f.read().splitlines()
+    except OSError as e:
+        raise KeyFileError(f"{path}: cannot open key file ({e.strerror})")
+    keys = {}
+    for n, line in enumerate(lines[:100], start=1):
+        words = line.split()
+        if not words or words[0].startswith("#"):
+            continue
+        ok = len(words) >= 2 and words[0] in ("public", "secret") and len(words[1]) == 40
+        if ok:
+            try:
+                ok = len(z85.decode(words[1].encode())) == 32
+            except (ValueError, KeyError, TypeError):
+                ok = False
+        if not ok:
+            raise KeyFileError(f"{path}:{n}: expected 'public <z85 key>' or 'secret <z85 key>'")
+        keys[words[0]] = words[1].encode()
+    if not keys:
+        raise KeyFileError(f"{path}: no key in the file")
+    if "secret" in keys:
+        public = zmq.curve_public(keys["secret"])
+        if keys.setdefault("public", public) != public:
+            raise KeyFileError(f"{path}: public and secret keys do not match")
+    return keys
+
+
+def curve_client_keys(server_pub_file, key_file):
+    """(server public, client public, client secret) from --curve-server-pub / --curve-key."""
+    if not zmq.has("curve"):
+        raise KeyFileError("CURVE requested but this libzmq has no CURVE support")
+    try:
+        server = read_key_file(server_pub_file)
+    except KeyFileError as e:
+        raise KeyFileError(f"{e} (--curve-server-pub: the server's .pub file)")
+    if "secret" in server:
+        raise KeyFileError(f"{server_pub_file}: holds the server's secret key; "
+                           "give the client the server's .pub file")
+    try:
+        mine = read_key_file(key_file)
+    except KeyFileError as e:
+        raise KeyFileError(f"{e} (--curve-key: this client's .key file)")
+    if "secret" not in mine:
+        raise KeyFileError(f"{key_file}: no secret key; give this client's .key file "
+                           "(public and secret), not its .pub")
+    return server["public"], mine["public"], mine["secret"]
 
 
 def main():
@@ -27,12 +90,26 @@ def main():
     ap.add_argument("--hold", type=int, default=200, help="updates held at full depth")
     ap.add_argument("--timeout-ms", type=int, default=2000)
     ap.add_argument("--out", default="-", help="CSV file ('-': stdout)")
+    ap.add_argument("--curve-server-pub", metavar="FILE",
+                    help="CURVE: the server's public key file (its .pub from conica-server --generate-keys)")
+    ap.add_argument("--curve-key", metavar="FILE",
+                    help="CURVE: this client's key pair file (its .key; the server lists its .pub)")
     args = ap.parse_args()
+    curve = None
+    if args.curve_server_pub or args.curve_key:
+        if not (args.curve_server_pub and args.curve_key):
+            sys.exit("probe.py: --curve-server-pub and --curve-key go together")
+        try:
+            curve = curve_client_keys(args.curve_server_pub, args.curve_key)
+        except KeyFileError as e:
+            sys.exit(f"probe.py: {e}")
     x0, y0, z0 = (float(v) for v in args.at.split(","))
 
     ctx = zmq.Context()
     sock = ctx.socket(zmq.DEALER)
     sock.setsockopt(zmq.LINGER, 0)
+    if curve:
+        sock.curve_serverkey, sock.curve_publickey, sock.curve_secretkey = curve
     sock.connect(args.endpoint)
 
     out = sys.stdout if args.out == "-" else open(args.out, "w", newline="")

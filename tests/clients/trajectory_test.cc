@@ -1,4 +1,4 @@
-// CSV trajectories (errors with file:line) and the built-in probe scripts.
+// CSV trajectories (errors with file:line:column) and the built-in probe scripts.
 #include "common/trajectory.h"
 
 #include <sstream>
@@ -28,20 +28,33 @@ TEST(Trajectory, ParsesHeaderCommentsAndRows) {
   EXPECT_EQ(rows[1].line, 5);
 }
 
-TEST(Trajectory, ErrorsNameFileAndLine) {
+TEST(Trajectory, ErrorsNameFileLineAndColumn) {
   EXPECT_EQ(parse_error("t,probe,x,y,z\n0,0,1,2,3\n0.1,0,1,2\n"),
-            "moves.csv:3: expected 5 fields (t,probe,x,y,z), got 4");
-  EXPECT_EQ(parse_error("0,0,0.1,abc,0\n"), "moves.csv:1: field y: \"abc\" is not a finite number");
+            "moves.csv:3:10: expected 5 fields (t,probe,x,y,z), got 4");
+  EXPECT_EQ(parse_error("0,0,0.1,abc,0\n"), "moves.csv:1:9: field y: \"abc\" is not a finite number");
   EXPECT_EQ(parse_error("0,0,0.1,0,0\n0,0.5,0,0,0\n"),
-            "moves.csv:2: probe must be a non-negative integer, got 0.5");
-  EXPECT_EQ(parse_error("0,0,0,0,nan\n"), "moves.csv:1: field z: \"nan\" is not a finite number");
+            "moves.csv:2:3: probe must be an integer in 0..1000000, got 0.5");
+  EXPECT_EQ(parse_error("0,0,0,0,nan\n"), "moves.csv:1:9: field z: \"nan\" is not a finite number");
   EXPECT_EQ(parse_error("# c\n\n0.2,0,0,0,0\n0.1,1,0,0,0\n0.1,0,0,0,0\n"),
-            "moves.csv:5: time goes backwards for probe 0 (0.1 s after 0.2 s)");
-  EXPECT_EQ(parse_error("-1,0,0,0,0\n"), "moves.csv:1: time must be >= 0 s, got -1");
+            "moves.csv:5:1: time goes backwards for probe 0 (0.1 s after 0.2 s)");
+  EXPECT_EQ(parse_error("-1,0,0,0,0\n"), "moves.csv:1:1: time must be >= 0 s, got -1");
   EXPECT_EQ(parse_error("0,0,20,0,300\n"),
-            "moves.csv:1: position more than 100 m from the origin (the file must be in metres)");
+            "moves.csv:1:10: position more than 100 m from the origin (the file must be in metres)");
   EXPECT_EQ(parse_error("t,probe,x,y,z\n"), "moves.csv: no samples (expected lines t,probe,x,y,z)");
-  EXPECT_EQ(parse_error("0,0,1,2,3,\n"), "moves.csv:1: expected 5 fields (t,probe,x,y,z), got 6");
+  EXPECT_EQ(parse_error("0,0,1,2,3,\n"), "moves.csv:1:11: expected 5 fields (t,probe,x,y,z), got 6");
+  // Columns count from the start of the raw line, blanks included.
+  EXPECT_EQ(parse_error("  0, 0 ,  0.1,  x1 ,0\n"), "moves.csv:1:17: field y: \"x1\" is not a finite number");
+}
+
+TEST(Trajectory, RepeatedTimesAndLargeProbeIndicesAreAccepted) {
+  // The client format: a probe may get two samples at the same time; probe indices past 63.
+  std::istringstream in("0,0,0,0,0\n0,0,0,0,0.001\n0.5,200,1,2,3\n");
+  std::vector<TrajectoryRow> rows;
+  std::string error;
+  ASSERT_TRUE(parse_trajectory(in, "m.csv", &rows, &error)) << error;
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[2].probe, 200);
+  EXPECT_EQ(rows[2].line, 3);
 }
 
 TEST(Trajectory, MissingFile) {

@@ -104,12 +104,12 @@ TEST(LabRun, SameInputsGiveTheSameBytesAndASummary) {
   EXPECT_THAT(c1, HasSubstr(",1\n"));
 }
 
-TEST(LabRun, BadProbeScriptNamesFileAndLine) {
+TEST(LabRun, BadProbeScriptNamesFileLineAndColumn) {
   const std::string bad = ::testing::TempDir() + "bad-script.csv";
   std::ofstream(bad) << "t,probe,x,y,z\n0,0,0,0,0\n0.1,0,0,zero,0\n";
   const LabRun r = run_lab("run --scene '" + std::string(CONICA_SOURCE_DIR) +
                            "/configs/paper-cube.pbtxt' --probe-script '" + bad +
                            "' --ticks 10 --out -");
   EXPECT_EQ(r.status, 2);
-  EXPECT_THAT(r.output, HasSubstr("bad-script.csv:3: field y is not a finite number"));
+  EXPECT_THAT(r.output, HasSubstr("bad-script.csv:3:9: field y: \"zero\" is not a finite number"));
 }

@@ -29,8 +29,9 @@ void on_signal(int) { g_stop = 1; }
 // The server over ZeroMQ: one update per tick, replies taken as they come.
 class ZmqLink : public ForceLink {
  public:
-  ZmqLink(zmq::context_t& ctx, const std::string& endpoint, std::uint32_t probe, double radius)
-      : conn_(ctx, endpoint, 11), probe_(probe), radius_(radius) {}
+  ZmqLink(zmq::context_t& ctx, const std::string& endpoint, std::uint32_t probe, double radius,
+          const CurveClient& curve)
+      : conn_(ctx, endpoint, 11, curve), probe_(probe), radius_(radius) {}
   void send(double, const Vec3& p) override {
     if (!conn_.send(probe_, seq_++, static_cast<std::uint64_t>(now_ns()), p, radius_)) ++send_failures;
   }
@@ -76,6 +77,7 @@ int main(int argc, char** argv) {
   double hand_depth = 0.012, hand_period = 2.0, hand_k = 300, hand_b = 2;
   double wall_k = 0;
   std::uint32_t probe = 0;
+  std::string curve_server_pub, curve_key;
   bool list = false, no_pc = false, no_coupling = false, no_interp = false;
   RendererOptions ro;
   app.add_flag("--list-devices", list, "list device backends and how to enable the missing ones");
@@ -103,6 +105,10 @@ int main(int argc, char** argv) {
   app.add_option("--offline-wall", wall_k,
                  "N/m: no server; a wall through --offset, normal +z, answers 2 ticks late");
   app.add_option("--log", log_path, "CSV per tick: t,x,y,z,px,py,pz,fx,fy,fz");
+  app.add_option("--curve-server-pub", curve_server_pub,
+                 "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
+  app.add_option("--curve-key", curve_key,
+                 "CURVE: this client's key pair file (its .key from --generate-keys; the server lists its .pub)");
   CLI11_PARSE(app, argc, argv);
 
   if (list) {
@@ -154,13 +160,16 @@ int main(int argc, char** argv) {
     if (!device) return fail(error);
   }
 
+  CurveClient curve;
+  if (std::string e = load_curve_client(curve_server_pub, curve_key, &curve); !e.empty()) return fail(e);
+
   zmq::context_t ctx(1);
   std::unique_ptr<ForceLink> link;
   ZmqLink* zl = nullptr;
   if (wall_k > 0) {
     link = std::make_unique<WallLink>(*off, Vec3(0, 0, 1), wall_k, 2, ro.dt);
   } else {
-    auto z = std::make_unique<ZmqLink>(ctx, endpoint, probe, radius);
+    auto z = std::make_unique<ZmqLink>(ctx, endpoint, probe, radius, curve);
     zl = z.get();
     link = std::move(z);
   }

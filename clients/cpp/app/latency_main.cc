@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   double rate_hz = 1000, seconds = 10, drain_s = 0.5, radius = 0;
   int probe = 0;
   std::uint32_t client_id = 7;
+  std::string curve_server_pub, curve_key;
   app.add_option("--endpoint", endpoint, "probe ROUTER of the server");
   app.add_option("--control-endpoint", control, "control ROUTER of the server ('' to skip stats)");
   app.add_option("--rate-hz", rate_hz, "updates per second")->check(CLI::Range(1.0, 100000.0));
@@ -43,6 +44,10 @@ int main(int argc, char** argv) {
   app.add_option("--label", label, "name of this run in the CSV and plots (e.g. the scene)");
   app.add_option("--plot", plot, "PNG: latency CDF (needs --csv; /usr/bin/python3 + matplotlib)");
   app.add_option("--plot-script", plot_script, "plotting script");
+  app.add_option("--curve-server-pub", curve_server_pub,
+                 "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
+  app.add_option("--curve-key", curve_key,
+                 "CURVE: this client's key pair file (its .key from --generate-keys; the server lists its .pub)");
   CLI11_PARSE(app, argc, argv);
 
   const auto pos = parse_vec3(position);
@@ -54,16 +59,22 @@ int main(int argc, char** argv) {
     std::cerr << "conica-latency: --plot needs --csv\n";
     return 1;
   }
+  CurveClient curve;
+  if (std::string e = load_curve_client(curve_server_pub, curve_key, &curve); !e.empty()) {
+    std::cerr << "conica-latency: " << e << "\n";
+    return 1;
+  }
   prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);  // precise wake-ups (field notes: default slack 50 us)
 
   zmq::context_t context(1);
   conica::v1::ControlReply before, after;
   std::string error;
   const bool have_stats = !control.empty() &&
-      control_request(context, control, conica::v1::ControlRequest::GET_STATS, 1000, &before, &error);
+      control_request(context, control, conica::v1::ControlRequest::GET_STATS, 1000, &before, &error,
+                      curve);
   if (!control.empty() && !have_stats) std::cerr << "conica-latency: no server statistics: " << error << "\n";
 
-  ProbeConnection conn(context, endpoint, client_id);
+  ProbeConnection conn(context, endpoint, client_id, curve);
   const auto n = static_cast<std::size_t>(rate_hz * seconds + 0.5);
   const std::int64_t period_ns = static_cast<std::int64_t>(1e9 / rate_hz + 0.5);
   LatencyRecorder rec(n);
@@ -118,7 +129,8 @@ int main(int argc, char** argv) {
   while (rec.received() < rec.sent() && now_ns() < end) drain(end);
 
   const bool have_after = have_stats &&
-      control_request(context, control, conica::v1::ControlRequest::GET_STATS, 1000, &after, &error);
+      control_request(context, control, conica::v1::ControlRequest::GET_STATS, 1000, &after, &error,
+                      curve);
 
   const LatencySummary s = summarize(rec.latencies_us());
   std::printf("conica-latency: %s, %.0f Hz for %.1f s, probe %d at %s\n", endpoint.c_str(), rate_hz,

@@ -54,6 +54,7 @@ int main(int argc, char** argv) {
   double rate_hz = 1000, radius = 0, timeout_s = 2;
   bool realtime = false;
   std::uint32_t client_id = 1;
+  std::string curve_server_pub, curve_key;
   app.add_option("--endpoint", endpoint, "probe ROUTER of the server");
   app.add_option("--script", script, "press, ramp, sine, sweep or creep");
   app.add_option("--trajectory", trajectory, "CSV file t,probe,x,y,z (s, m) instead of a script");
@@ -77,6 +78,10 @@ int main(int argc, char** argv) {
   app.add_option("--timeout", timeout_s, "s to wait for a reply before giving up");
   app.add_option("-o,--out", out_path, "CSV output file ('-': stdout)");
   app.add_flag("--realtime", realtime, "pace by the script clock instead of as fast as possible");
+  app.add_option("--curve-server-pub", curve_server_pub,
+                 "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
+  app.add_option("--curve-key", curve_key,
+                 "CURVE: this client's key pair file (its .key from --generate-keys; the server lists its .pub)");
   CLI11_PARSE(app, argc, argv);
 
   auto fail = [](const std::string& m) {
@@ -94,6 +99,9 @@ int main(int argc, char** argv) {
   p.axis = *axis_v;
   p.sweep_dir = *sweep_v;
   p.dt = 1.0 / rate_hz;
+
+  CurveClient curve;
+  if (std::string e = load_curve_client(curve_server_pub, curve_key, &curve); !e.empty()) return fail(e);
 
   std::vector<ProbeRun> runs;
   std::string error;
@@ -131,7 +139,7 @@ int main(int argc, char** argv) {
   *out << "t,probe,seq,x,y,z,fx,fy,fz,contact,rtt_us\n";
 
   zmq::context_t context(1);
-  ProbeConnection conn(context, endpoint, client_id);
+  ProbeConnection conn(context, endpoint, client_id, curve);
   std::vector<Request> requests;
   requests.reserve(1 << 16);
   std::vector<double> rtts;

@@ -67,6 +67,31 @@ ReplyKind decode_reply(const void* data, std::size_t size, v1::ServerMessage* m,
   return ReplyKind::kForce;
 }
 
+std::string load_curve_client(const std::string& server_pub_file, const std::string& key_file,
+                              CurveClient* out) {
+  *out = {};
+  if (server_pub_file.empty() && key_file.empty()) return {};
+  if (server_pub_file.empty()) return "--curve-key needs --curve-server-pub (the server's .pub file)";
+  if (key_file.empty()) return "--curve-server-pub needs --curve-key (this client's .key file)";
+  if (!net::curve_available()) return "CURVE requested but this libzmq has no CURVE support";
+  net::CurveKeyPair server, mine;
+  if (std::string e = net::read_key_file(server_pub_file, &server); !e.empty())
+    return e + " (--curve-server-pub: the server's .pub file)";
+  if (!server.secret_key.empty())
+    return server_pub_file + ": holds the server's secret key; give the client the server's .pub file";
+  if (std::string e = net::read_key_file(key_file, &mine); !e.empty())
+    return e + " (--curve-key: this client's .key file)";
+  if (mine.secret_key.empty())
+    return key_file + ": no secret key; give this client's .key file (public and secret), not its .pub";
+  out->server_public = server.public_key;
+  out->keys = mine;
+  return {};
+}
+
+void apply_curve(zmq::socket_t& socket, const CurveClient& curve) {
+  if (curve.enabled()) net::set_curve_client(socket, curve.server_public, curve.keys);
+}
+
 bool wait_readable(zmq::socket_t& socket, std::int64_t deadline_ns) {
   for (;;) {
     // ZMQ_FD is edge-triggered: always ask ZMQ_EVENTS before sleeping on it.
@@ -80,9 +105,10 @@ bool wait_readable(zmq::socket_t& socket, std::int64_t deadline_ns) {
 }
 
 ProbeConnection::ProbeConnection(zmq::context_t& context, const std::string& endpoint,
-                                 std::uint32_t client_id)
+                                 std::uint32_t client_id, const CurveClient& curve)
     : socket_(context, zmq::socket_type::dealer), client_id_(client_id) {
   socket_.set(zmq::sockopt::linger, 0);
+  apply_curve(socket_, curve);
   socket_.set(zmq::sockopt::sndhwm, 100000);
   socket_.set(zmq::sockopt::rcvhwm, 100000);
   socket_.connect(endpoint);
@@ -114,9 +140,10 @@ ReplyKind ProbeConnection::receive(std::int64_t deadline_ns, ForceSample* force,
 
 bool control_request(zmq::context_t& context, const std::string& endpoint,
                      v1::ControlRequest::Kind kind, int timeout_ms, v1::ControlReply* reply,
-                     std::string* error) {
+                     std::string* error, const CurveClient& curve) {
   zmq::socket_t s(context, zmq::socket_type::dealer);
   s.set(zmq::sockopt::linger, 0);
+  apply_curve(s, curve);
   s.connect(endpoint);
   v1::ClientMessage m;
   m.set_protocol_version(kProtocolVersion);

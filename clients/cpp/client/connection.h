@@ -11,6 +11,7 @@
 
 #include "common/types.h"
 #include "conica/v1/messages.pb.h"
+#include "net/curve.h"
 
 namespace conica::client {
 
@@ -45,6 +46,24 @@ enum class ReplyKind { kForce, kError, kOther, kMalformed };
 ReplyKind decode_reply(const void* data, std::size_t size, v1::ServerMessage* scratch,
                        ForceSample* force, std::string* error);
 
+// CURVE (server/net/curve.h): the server's public key and this client's key pair, read from
+// the files conica-server --generate-keys writes (NAME.pub, NAME.key). Disabled when empty.
+struct CurveClient {
+  std::string server_public;  // z85, 40 characters
+  net::CurveKeyPair keys;     // this client's public and secret key, z85
+  bool enabled() const { return !server_public.empty(); }
+};
+
+// Reads --curve-server-pub and --curve-key: both empty leaves `out` disabled; otherwise both
+// files must be readable key files, the first with the server's public key (and no secret),
+// the second with this client's public and secret key. Returns "" or "FILE: what is wrong".
+std::string load_curve_client(const std::string& server_pub_file, const std::string& key_file,
+                              CurveClient* out);
+
+// The one place client sockets get CURVE: sets the server key and this client's key pair on
+// `socket` (before connect). Does nothing when `curve` is disabled.
+void apply_curve(zmq::socket_t& socket, const CurveClient& curve);
+
 // Waits until `socket` can be read or the absolute time deadline_ns passes (ppoll on ZMQ_FD,
 // sub-millisecond). Returns true when a message is ready.
 bool wait_readable(zmq::socket_t& socket, std::int64_t deadline_ns);
@@ -52,7 +71,8 @@ bool wait_readable(zmq::socket_t& socket, std::int64_t deadline_ns);
 // A DEALER to the probe ROUTER. Sends never block (a full queue is reported as false).
 class ProbeConnection {
  public:
-  ProbeConnection(zmq::context_t& context, const std::string& endpoint, std::uint32_t client_id);
+  ProbeConnection(zmq::context_t& context, const std::string& endpoint, std::uint32_t client_id,
+                  const CurveClient& curve = {});
   bool send(std::uint32_t probe_id, std::uint64_t sequence, std::uint64_t send_time_ns,
             const Vec3& position, double radius = 0);
   // Receives one message if one is ready before deadline_ns (absolute; now_ns() for a poll).
@@ -73,7 +93,7 @@ class ProbeConnection {
 // Asks the control ROUTER for a ControlRequest of `kind` and waits up to timeout_ms for the reply.
 bool control_request(zmq::context_t& context, const std::string& endpoint,
                      v1::ControlRequest::Kind kind, int timeout_ms, v1::ControlReply* reply,
-                     std::string* error);
+                     std::string* error, const CurveClient& curve = {});
 
 // Human-readable multi-line summary of LoopStats (tick lateness, missed ticks, step cost, ...).
 std::string describe_stats(const v1::LoopStats& s);

@@ -1,93 +1,32 @@
 #include "common/trajectory.h"
 
+#include "io/probe_script.h"
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <map>
 #include <sstream>
 
 namespace conica::client {
 
-namespace {
-
-std::vector<std::string> split(const std::string& line) {
-  std::vector<std::string> out;
-  std::stringstream ss(line);
-  std::string part;
-  while (std::getline(ss, part, ',')) out.push_back(part);
-  if (!line.empty() && line.back() == ',') out.emplace_back();
-  return out;
-}
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r");
-  if (b == std::string::npos) return {};
-  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
-}
-
-}  // namespace
-
 bool parse_trajectory(std::istream& in, const std::string& name, std::vector<TrajectoryRow>* rows,
                       std::string* error) {
-  static const char* kFields[] = {"t", "probe", "x", "y", "z"};
   rows->clear();
-  std::map<int, double> last_t;
-  std::string line;
-  int n = 0;
-  bool seen_data = false;
-  auto fail = [&](const std::string& what) {
-    *error = name + ":" + std::to_string(n) + ": " + what;
-    return false;
-  };
-  while (std::getline(in, line)) {
-    ++n;
-    const std::string s = trim(line);
-    if (s.empty() || s[0] == '#') continue;
-    if (!seen_data && s[0] == 't') {  // header
-      seen_data = true;
-      continue;
-    }
-    seen_data = true;
-    const auto f = split(s);
-    if (f.size() != 5)
-      return fail("expected 5 fields (t,probe,x,y,z), got " + std::to_string(f.size()));
-    TrajectoryRow r;
-    r.line = n;
-    double v[5];
-    for (int i = 0; i < 5; ++i) {
-      const auto d = parse_double(f[i]);
-      if (!d) return fail("field " + std::string(kFields[i]) + ": \"" + trim(f[i]) +
-                          "\" is not a finite number");
-      v[i] = *d;
-    }
-    if (v[0] < 0) return fail("time must be >= 0 s, got " + trim(f[0]));
-    if (v[1] < 0 || v[1] != std::floor(v[1]) || v[1] > 1e6)
-      return fail("probe must be a non-negative integer, got " + trim(f[1]));
-    r.t = v[0];
-    r.probe = static_cast<int>(v[1]);
-    r.position = Vec3(v[2], v[3], v[4]);
-    if (r.position.cwiseAbs().maxCoeff() > 100)
-      return fail("position more than 100 m from the origin (the file must be in metres)");
-    auto it = last_t.find(r.probe);
-    if (it != last_t.end() && r.t < it->second) {
-      std::ostringstream m;
-      m << "time goes backwards for probe " << r.probe << " (" << r.t << " s after "
-        << it->second << " s)";
-      return fail(m.str());
-    }
-    last_t[r.probe] = r.t;
-    rows->push_back(r);
-  }
-  if (rows->empty()) {
-    *error = name + ": no samples (expected lines t,probe,x,y,z)";
+  std::ostringstream text;
+  text << in.rdbuf();
+  auto parsed = io::parse_probe_rows(text.str(), name, io::client_trajectory_format());
+  if (!parsed) {
+    *error = parsed.error();
     return false;
   }
+  rows->reserve(parsed.value().size());
+  for (const io::ProbeScriptRow& r : parsed.value()) rows->push_back({r.t, r.probe, r.x, r.line});
   return true;
 }
 
 bool load_trajectory(const std::string& path, std::vector<TrajectoryRow>* rows,
                      std::string* error) {
-  std::ifstream f(path);
+  std::ifstream f(path, std::ios::binary);
   if (!f) {
     *error = path + ": cannot open";
     return false;

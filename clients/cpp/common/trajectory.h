@@ -1,8 +1,10 @@
 // What a scripted probe does over time: a CSV trajectory or one of the built-in scripts.
 //
-// CSV trajectory: one row per sample, `t,probe,x,y,z` (s, 0-based probe index, m); an optional
-// header line starting with "t", '#' comments and blank lines are skipped. Per probe, time must
-// not go backwards. Errors name the file and line: "moves.csv:7: expected 5 fields ...".
+// CSV trajectory: one row per sample, `t,probe,x,y,z` (s, 0-based probe index, m), read by the
+// server's probe-script parser (server/io/probe_script.h) in its client format: an optional
+// header line starting with "t", '#' comments and blank lines are skipped, per probe time must
+// not go backwards, positions within 100 m (a millimetre file is refused). Errors name the file,
+// line and column: "moves.csv:7:9: expected 5 fields ...".
 //
 // Scripts move a probe along `axis` (unit vector, the pressing direction) through the contact
 // point `at` (the probe centre at depth 0). The signed depth d(t) (m, > 0 into the tissue) gives
@@ -34,7 +36,7 @@ struct TrajectoryRow {
   int line = 0;        // 1-based line in the file
 };
 
-// Parses CSV rows; on error returns false and sets `error` to "name:line: what".
+// Parses CSV rows; on error returns false and sets `error` to "name:line:column: what".
 bool parse_trajectory(std::istream& in, const std::string& name, std::vector<TrajectoryRow>* rows,
                       std::string* error);
 bool load_trajectory(const std::string& path, std::vector<TrajectoryRow>* rows, std::string* error);

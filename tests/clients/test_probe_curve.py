@@ -1,0 +1,143 @@
+#!/usr/bin/python3
+"""clients/python/probe.py against a CURVE server: keys from conica-server --generate-keys, the
+server started with --curve-server-key and --curve-clients on ephemeral loopback ports.
+
+A listed client key presses the built-in cube and records an upward force growing with depth;
+an unknown key gets no reply (probe.py gives up after its timeout, the server logs the refusal);
+damaged key files are refused naming the file.
+
+    PYTHONPATH=build/proto/gen /usr/bin/python3 tests/clients/test_probe_curve.py \\
+        --server build/bin/conica-server --probe-py clients/python/probe.py
+"""
+import argparse
+import csv
+import io
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import unittest
+
+SERVER = PROBE_PY = None
+TOP = 0.04               # m, top face of the built-in cube
+NODE_XY = 3 * 0.04 / 7   # m, a lattice column under the probe
+RADIUS = 5e-3            # m, the cube's probe
+
+
+def run(cmd, timeout=60):
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+
+
+class CurveServer:
+    def __init__(self, key, clients):
+        any_port = "tcp://127.0.0.1:*"
+        self.proc = subprocess.Popen(
+            [SERVER, "--builtin", "cube", "--probe-endpoint", any_port, "--state-endpoint", any_port,
+             "--control-endpoint", any_port, "--seconds", "120", "--no-realtime",
+             "--stats-seconds", "0", "--curve-server-key", key, "--curve-clients", clients],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.lines = []
+        found = threading.Event()
+        self.probe = None
+
+        def read():
+            pattern = re.compile(r"serving: probes (\S+), state (\S+), control (\S+) at")
+            for line in self.proc.stdout:
+                self.lines.append(line)
+                m = pattern.search(line)
+                if m and not found.is_set():
+                    self.probe = m.group(1)
+                    found.set()
+            found.set()
+
+        threading.Thread(target=read, daemon=True).start()
+        if not found.wait(30) or self.probe is None:
+            self.proc.kill()
+            raise RuntimeError("server did not start:\n" + "".join(self.lines))
+
+    def stop(self):
+        self.proc.send_signal(signal.SIGTERM)
+        return self.proc.wait(timeout=10)
+
+
+class ProbeCurveTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = tempfile.mkdtemp(prefix="conica-probe-curve-")
+        for d, name in ((cls.dir, "server"), (os.path.join(cls.dir, "clients"), "alice"),
+                        (os.path.join(cls.dir, "other"), "mallory")):
+            r = run([SERVER, "--generate-keys", d, "--key-name", name])
+            assert r.returncode == 0, r.stdout + r.stderr
+        cls.server = CurveServer(os.path.join(cls.dir, "server.key"), os.path.join(cls.dir, "clients"))
+
+    @classmethod
+    def tearDownClass(cls):
+        rc = cls.server.stop()
+        shutil.rmtree(cls.dir, ignore_errors=True)
+        assert rc == 0, "server exit code %d:\n%s" % (rc, "".join(cls.server.lines))
+
+    def path(self, name):
+        return os.path.join(self.dir, name)
+
+    def probe(self, key, server_pub="server.pub", extra=()):
+        return run(["/usr/bin/python3", PROBE_PY, "--endpoint", self.server.probe,
+                    "--at", f"{NODE_XY},{NODE_XY},{TOP + RADIUS}", "--depth", "0.002",
+                    "--approach", "0.002", "--steps", "40", "--hold", "5",
+                    "--curve-server-pub", self.path(server_pub), "--curve-key", self.path(key),
+                    *extra])
+
+    def test_listed_key_presses_and_feels_the_body(self):
+        r = self.probe("clients/alice.key")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        rows = list(csv.DictReader(io.StringIO(r.stdout)))
+        self.assertEqual(len(rows), 46)
+        first, last = rows[0], rows[-1]
+        self.assertEqual(first["contact"], "0")  # starts 2 mm above the surface
+        self.assertEqual(float(first["fz"]), 0.0)
+        self.assertEqual(last["contact"], "1")   # 2 mm deep
+        self.assertGreater(float(last["fz"]), 0.0)  # the body pushes the probe up
+        # Deeper is harder: the force at 2 mm exceeds the force at 1 mm (row 30 of 40 steps).
+        self.assertGreater(float(last["fz"]), float(rows[30]["fz"]))
+        self.assertGreater(float(rows[30]["fz"]), 0.0)
+        self.assertLess(abs(float(last["fx"])) + abs(float(last["fy"])), 0.05 * float(last["fz"]))
+
+    def test_unknown_key_gets_no_reply(self):
+        t0 = time.monotonic()
+        r = self.probe("other/mallory.key", extra=("--timeout-ms", "1000"))
+        self.assertLess(time.monotonic() - t0, 20)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("no reply", r.stderr)
+        self.assertEqual(r.stdout.count("\n"), 1, r.stdout)  # the CSV header only
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and not any("CURVE: refused" in l for l in self.server.lines):
+            time.sleep(0.05)
+        self.assertTrue(any("CURVE: refused" in l for l in self.server.lines), "".join(self.server.lines))
+
+    def test_bad_key_files_are_named(self):
+        r = self.probe("clients/alice.pub")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn(self.path("clients/alice.pub") + ": no secret key", r.stderr)
+        r = self.probe("clients/alice.key", server_pub="server.key")
+        self.assertIn(self.path("server.key") + ": holds the server's secret key", r.stderr)
+        with open(self.path("bad.key"), "w") as f:
+            f.write("# damaged\npublic abc\n")
+        r = self.probe("bad.key")
+        self.assertIn(self.path("bad.key") + ":2: expected 'public <z85 key>' or 'secret <z85 key>'",
+                      r.stderr)
+        r = self.probe("missing.key")
+        self.assertIn(self.path("missing.key") + ": cannot open key file", r.stderr)
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--server", required=True)
+    parser.add_argument("--probe-py", required=True)
+    args, rest = parser.parse_known_args()
+    SERVER = os.path.abspath(args.server)
+    PROBE_PY = os.path.abspath(args.probe_py)
+    unittest.main(argv=[sys.argv[0]] + rest)
