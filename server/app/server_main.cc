@@ -59,6 +59,10 @@ int main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
   app.add_flag("--no-realtime", no_realtime, "do not try SCHED_FIFO and mlockall");
+  app.add_flag("--busy-poll", opt.busy_poll,
+               "spin on the sockets between ticks instead of sleeping (lower latency, a whole core)");
+  int io_threads = 1;
+  app.add_option("--io-threads", io_threads, "ZeroMQ I/O threads")->check(CLI::Range(1, 16));
   std::string curve_key, curve_clients, generate_dir, key_name = "server";
   app.add_option("--curve-server-key", curve_key,
                  "CURVE: the server's key file (public + secret, from --generate-keys)")
@@ -125,7 +129,7 @@ int main(int argc, char** argv) {
     return 1;
   }
 
-  zmq::context_t context(1);
+  zmq::context_t context(io_threads);
   {
     conica::net::Server server(context, opt);
     if (err = server.load(spec); err.empty()) err = server.start();

@@ -65,6 +65,15 @@ constexpr Clock kErrorLogPeriodNs = 10ull * 1000000000ull;
 // hold off the tick (the caller checks its deadline between calls).
 constexpr int kDrainBudget = 64;
 
+// A spin-wait hint to the CPU (busy polling).
+inline void cpu_relax() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_ia32_pause();
+#elif defined(__aarch64__)
+  asm volatile("yield");
+#endif
+}
+
 }  // namespace
 
 struct Server::Loop {
@@ -172,6 +181,9 @@ struct Server::Loop {
 
   void try_realtime() {
     prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
+    if (opt.busy_poll)
+      spdlog::warn("busy poll: the loop thread spins on its sockets between ticks and uses a "
+                   "whole core");
     if (!opt.realtime) return;
     sched_param sp{};
     sp.sched_priority = std::min(80, sched_get_priority_max(SCHED_FIFO));
@@ -412,6 +424,12 @@ struct Server::Loop {
       if (srv.stop_.load(std::memory_order_relaxed)) return;
       const Clock t = now_ns();
       if (t >= deadline) return;
+      if (opt.busy_poll) {
+        // ZMQ_EVENTS processes the I/O thread's commands, so a message that arrived is seen
+        // here without any file-descriptor wake-up.
+        if (!readable(probe) && !readable(control)) cpu_relax();
+        continue;
+      }
       if (deadline - t <= kFinalSleepNs) {
         sleep_until(deadline);
         return;

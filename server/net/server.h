@@ -47,6 +47,10 @@ struct ServerOptions {
   int pub_sndhwm = 16;                // messages queued per subscriber before PUB drops
   double box_margin = 0.25;       // m: probe positions must lie within the body box grown by this
   bool realtime = false;          // try SCHED_FIFO and mlockall (logged at info when refused)
+  // Between ticks, spin on the sockets (ZMQ_EVENTS, receive with ZMQ_DONTWAIT) instead of
+  // sleeping in ppoll on their file descriptors: no wake-up on a probe's arrival, at the price of
+  // a whole core (only sensible with a core to spare; logged at start).
+  bool busy_poll = false;
   int window = 2048;              // ticks in the rolling statistics window
   bool refuse_slow_scene = true;  // refuse a scene whose median step cost exceeds the period
   // LOAD_SCENE: path -> spec; returns an error message (empty on success). Unset: refused.

@@ -482,3 +482,46 @@ TEST(ServerLatencyTest, LoopbackRoundTripsAreAnsweredBetweenTicks) {
 
 }  // namespace
 }  // namespace conica::net
+
+namespace conica::net {
+namespace {
+
+// --busy-poll: the loop spins on its sockets between ticks instead of sleeping in ppoll. It must
+// still tick at the rate, answer every probe (between ticks, with the same physics) and stop.
+TEST(ServerBusyPollTest, SpinningLoopTicksAnswersAndStops) {
+  zmq::context_t ctx;
+  ServerOptions opt;
+  opt.probe_endpoint = opt.state_endpoint = opt.control_endpoint = "tcp://127.0.0.1:*";
+  opt.log_period_s = 0;
+  opt.refuse_slow_scene = false;
+  opt.busy_poll = true;
+  Server server(ctx, opt);
+  BodySpec spec;
+  ASSERT_EQ(builtin_scene("cube", 1e-3, &spec), "");
+  ASSERT_EQ(server.load(spec), "");
+  ASSERT_EQ(server.start(), "");
+  Client c(ctx, server.endpoints().probe);
+  const v1::ForceReply far = c.probe(1, Vec3(kNode, kNode, kTop + kRadius + 0.01));
+  EXPECT_FALSE(far.contact());
+  double last = 0;
+  std::uint64_t seq = 1;
+  for (double depth : {0.5e-3, 1e-3, 2e-3}) {
+    const v1::ForceReply f = c.probe(++seq, Pressed(depth));
+    EXPECT_TRUE(f.contact());
+    EXPECT_GT(f.force().z(), last) << depth;  // up, harder with depth
+    last = f.force().z();
+  }
+  const std::uint64_t t0 = mono_ns();
+  const std::uint64_t ticks0 = server.stats().ticks;
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  server.stop();
+  const double elapsed_s = (mono_ns() - t0) * 1e-9;
+  const LoopStatsData s = server.stats();
+  // About 1 kHz: at least half the ticks of the elapsed time (a loaded machine), never more.
+  EXPECT_GT(static_cast<double>(s.ticks - ticks0), 0.5 * 1000 * (elapsed_s - 0.1));
+  EXPECT_LT(static_cast<double>(s.ticks - ticks0), 1000 * elapsed_s + 150);
+  EXPECT_EQ(s.replies_sent, 4u);
+}
+
+}  // namespace
+}  // namespace conica::net

@@ -5,10 +5,15 @@
 // sends the socket is polled (ppoll on ZMQ_FD) and replies are timestamped as they are read; the
 // last 50 us before a deadline are slept with clock_nanosleep(TIMER_ABSTIME). A late wake-up
 // delays the send, never the schedule: the request still counts from its due time.
+// Low-latency options: --spin-us N busy-waits (polling the socket) through the last N us before
+// each send instead of sleeping; --busy-poll-us N keeps polling the socket without sleeping
+// for up to N us after each send or until its reply is in (never past the next send's spin or
+// sleep); --io-threads sets the ZeroMQ I/O threads. Timer slack is always 1 ns.
 // After the last send, replies are awaited for --drain seconds; the rest are lost.
 // The server's loop statistics (tick lateness, missed ticks) come from control GET_STATS.
 #include <sys/prctl.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -31,6 +36,8 @@ int main(int argc, char** argv) {
   int probe = 0;
   std::uint32_t client_id = 7;
   std::string curve_server_pub, curve_key;
+  double spin_us = 0, busy_poll_us = 0;
+  int io_threads = 1;
   app.add_option("--endpoint", endpoint, "probe ROUTER of the server");
   app.add_option("--control-endpoint", control, "control ROUTER of the server ('' to skip stats)");
   app.add_option("--rate-hz", rate_hz, "updates per second")->check(CLI::Range(1.0, 100000.0));
@@ -44,6 +51,12 @@ int main(int argc, char** argv) {
   app.add_option("--label", label, "name of this run in the CSV and plots (e.g. the scene)");
   app.add_option("--plot", plot, "PNG: latency CDF (needs --csv; /usr/bin/python3 + matplotlib)");
   app.add_option("--plot-script", plot_script, "plotting script");
+  app.add_option("--spin-us", spin_us, "us before each send spent spinning on the socket instead of sleeping")
+      ->check(CLI::Range(0.0, 1e6));
+  app.add_option("--busy-poll-us", busy_poll_us,
+                 "us after each send spent polling for its reply without sleeping")
+      ->check(CLI::Range(0.0, 1e6));
+  app.add_option("--io-threads", io_threads, "ZeroMQ I/O threads")->check(CLI::Range(1, 16));
   app.add_option("--curve-server-pub", curve_server_pub,
                  "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
   app.add_option("--curve-key", curve_key,
@@ -66,7 +79,7 @@ int main(int argc, char** argv) {
   }
   prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);  // precise wake-ups (field notes: default slack 50 us)
 
-  zmq::context_t context(1);
+  zmq::context_t context(io_threads);
   conica::v1::ControlReply before, after;
   std::string error;
   const bool have_stats = !control.empty() &&
@@ -113,17 +126,29 @@ int main(int argc, char** argv) {
 
   // Let the connection come up before the clock starts.
   const std::int64_t t0 = now_ns() + 100'000'000;
+  // The last stretch before a send: slept (clock_nanosleep) or spun (--spin-us).
+  const std::int64_t spin_ns = static_cast<std::int64_t>(spin_us * 1e3);
+  const std::int64_t busy_ns = static_cast<std::int64_t>(busy_poll_us * 1e3);
+  const std::int64_t guard_ns = std::max<std::int64_t>(50'000, spin_ns);
   for (std::size_t i = 0; i < n; ++i) {
     const std::int64_t due = t0 + static_cast<std::int64_t>(i) * period_ns;
-    while (now_ns() < due - 50'000) drain(due - 50'000);
+    while (now_ns() < due - guard_ns) drain(due - guard_ns);
     drain(0);
-    sleep_until_ns(due);
+    if (spin_ns > 0) {
+      while (now_ns() < due) drain(0);
+    } else {
+      sleep_until_ns(due);
+    }
     const std::int64_t late = now_ns() - due;
     if (late > worst_send_delay_ns) worst_send_delay_ns = late;
     rec.on_sent(i, due);
     if (!conn.send(static_cast<std::uint32_t>(probe), i, static_cast<std::uint64_t>(due), *pos, radius))
       ++send_failures;
     drain(0);
+    if (busy_ns > 0) {
+      const std::int64_t until = std::min(now_ns() + busy_ns, due + period_ns - guard_ns);
+      while (rec.received() < rec.sent() && now_ns() < until) drain(0);
+    }
   }
   const std::int64_t end = now_ns() + static_cast<std::int64_t>(drain_s * 1e9);
   while (rec.received() < rec.sent() && now_ns() < end) drain(end);

@@ -1,0 +1,127 @@
+#!/usr/bin/python3
+"""Interleaved latency trials: several server/client option variants measured in one run.
+
+For every trial and every variant (the order rotates from trial to trial) a fresh conica-server
+serves the scene on ports the OS picks and conica-latency sends at --rate-hz for --seconds;
+the summary line (p50_us, p99_us, ...) and the legs are collected. Prints a Markdown table with
+the median p50 / p99 per variant and their ratios to the first variant (the default), and the
+load average seen before each trial (the machine may be shared).
+
+    /usr/bin/python3 clients/python/latency_trials.py --bin build/bin --scene configs/liver.pbtxt \\
+        --trials 5 --seconds 10
+"""
+import argparse
+import os
+import re
+import signal
+import statistics
+import subprocess
+import sys
+import threading
+
+# name, server options, conica-latency options
+VARIANTS = [
+    ("default", [], []),
+    ("client spin 100 us + busy poll 1 ms", [], ["--spin-us", "100", "--busy-poll-us", "1000"]),
+    ("server --busy-poll", ["--busy-poll"], []),
+    ("server --busy-poll, client spin + busy poll", ["--busy-poll"],
+     ["--spin-us", "100", "--busy-poll-us", "1000"]),
+    ("as above, server --no-realtime", ["--busy-poll", "--no-realtime"],
+     ["--spin-us", "100", "--busy-poll-us", "1000"]),
+]
+
+
+def start_server(binary, scene, seconds, extra):
+    any_port = "tcp://127.0.0.1:*"
+    proc = subprocess.Popen(
+        [binary, "--scene", scene, "--probe-endpoint", any_port, "--state-endpoint", any_port,
+         "--control-endpoint", any_port, "--seconds", str(seconds), "--stats-seconds", "0", *extra],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    found, lines, endpoints = threading.Event(), [], []
+
+    def read():
+        pattern = re.compile(r"serving: probes (\S+), state (\S+), control (\S+) at")
+        for line in proc.stdout:
+            lines.append(line)
+            m = pattern.search(line)
+            if m and not found.is_set():
+                endpoints.extend(m.groups())
+                found.set()
+        found.set()
+
+    threading.Thread(target=read, daemon=True).start()
+    if not found.wait(60) or not endpoints:
+        proc.kill()
+        sys.exit("latency_trials.py: the server did not start:\n" + "".join(lines))
+    return proc, endpoints
+
+
+def one_trial(args, server_extra, client_extra):
+    proc, (probe, _, control) = start_server(os.path.join(args.bin, "conica-server"), args.scene,
+                                             args.seconds + 30, server_extra)
+    try:
+        r = subprocess.run([os.path.join(args.bin, "conica-latency"), "--endpoint", probe,
+                            "--control-endpoint", control, "--rate-hz", str(args.rate_hz),
+                            "--seconds", str(args.seconds), *client_extra],
+                           capture_output=True, text=True, timeout=args.seconds + 60)
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=20)
+    m = re.search(r"p50_us=(\S+) p99_us=(\S+) p999_us=(\S+) max_us=(\S+) lost=(\d+) sent=(\d+)", r.stdout)
+    if not m:
+        sys.exit("latency_trials.py: no summary line from conica-latency:\n" + r.stdout + r.stderr)
+    legs = re.search(r"scheduled -> server recv (\S+) / (\S+), in server (\S+) / (\S+), "
+                     r"server reply -> client read (\S+) / (\S+)", r.stdout)
+    return {"p50": float(m.group(1)), "p99": float(m.group(2)), "lost": int(m.group(5)),
+            "to_server_p50": float(legs.group(1)) if legs else float("nan"),
+            "to_client_p50": float(legs.group(5)) if legs else float("nan")}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bin", default="build/bin", help="folder with conica-server and conica-latency")
+    ap.add_argument("--scene", default="configs/liver.pbtxt")
+    ap.add_argument("--trials", type=int, default=5)
+    ap.add_argument("--seconds", type=float, default=10)
+    ap.add_argument("--rate-hz", type=float, default=1000)
+    ap.add_argument("--only", help="comma-separated variant indices to run (0 is the default)")
+    args = ap.parse_args()
+    variants = VARIANTS
+    if args.only:
+        variants = [VARIANTS[int(i)] for i in args.only.split(",")]
+    results = {v[0]: [] for v in variants}
+    loads = []
+    for t in range(args.trials):
+        order = variants[t % len(variants):] + variants[:t % len(variants)]
+        for name, server_extra, client_extra in order:
+            loads.append(os.getloadavg()[0])
+            r = one_trial(args, server_extra, client_extra)
+            results[name].append(r)
+            print(f"trial {t + 1} {name}: p50 {r['p50']:.1f} us p99 {r['p99']:.1f} us lost {r['lost']} "
+                  f"(load {loads[-1]:.2f})", file=sys.stderr, flush=True)
+    base = results[variants[0][0]]
+    b50 = statistics.median(r["p50"] for r in base)
+    b99 = statistics.median(r["p99"] for r in base)
+    print(f"\n{args.trials} x {args.seconds:g} s per variant at {args.rate_hz:g} Hz, {args.scene}; "
+          f"load average (1 min) before the trials: median {statistics.median(loads):.2f}, "
+          f"range {min(loads):.2f}-{max(loads):.2f}\n")
+    print("| variant | server | conica-latency | p50 (median) | p99 (median) | p50 / default | "
+          "p99 / default | sched -> server recv p50 | reply -> client read p50 | lost |")
+    print("|---|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    for name, server_extra, client_extra in variants:
+        rs = results[name]
+        p50 = statistics.median(r["p50"] for r in rs)
+        p99 = statistics.median(r["p99"] for r in rs)
+        ts = statistics.median(r["to_server_p50"] for r in rs)
+        tc = statistics.median(r["to_client_p50"] for r in rs)
+        lost = sum(r["lost"] for r in rs)
+        print(f"| {name} | `{' '.join(server_extra) or '-'}` | `{' '.join(client_extra) or '-'}` | "
+              f"{p50:.0f} us | {p99:.0f} us | {p50 / b50:.2f} | {p99 / b99:.2f} | {ts:.0f} us | "
+              f"{tc:.0f} us | {lost} |")
+    print("\nper trial p50 / p99 (us):")
+    for name, _, _ in variants:
+        print(f"  {name}: " + ", ".join(f"{r['p50']:.0f}/{r['p99']:.0f}" for r in results[name]))
+
+
+if __name__ == "__main__":
+    main()
