@@ -22,12 +22,18 @@ import threading
 # name, server options, conica-latency options
 VARIANTS = [
     ("default", [], []),
-    ("client spin 100 us + busy poll 1 ms", [], ["--spin-us", "100", "--busy-poll-us", "1000"]),
-    ("server --busy-poll", ["--busy-poll"], []),
-    ("server --busy-poll, client spin + busy poll", ["--busy-poll"],
-     ["--spin-us", "100", "--busy-poll-us", "1000"]),
-    ("as above, server --no-realtime", ["--busy-poll", "--no-realtime"],
-     ["--spin-us", "100", "--busy-poll-us", "1000"]),
+    ("client spin + busy poll", [], ["--spin-us", "100", "--busy-poll-us", "500"]),
+    ("server busy poll", ["--busy-poll"], []),
+    ("server + client busy poll", ["--busy-poll"], ["--spin-us", "100", "--busy-poll-us", "500"]),
+    ("server I/O threads FIFO", ["--realtime-io"], []),
+    ("client FIFO", [], ["--realtime"]),
+    ("server I/O FIFO + client FIFO", ["--realtime-io"], ["--realtime"]),
+    ("all of the above", ["--realtime-io", "--busy-poll"],
+     ["--realtime", "--spin-us", "100", "--busy-poll-us", "500"]),
+    ("server I/O FIFO + client FIFO, spin 100 us", ["--realtime-io"], ["--realtime", "--spin-us", "100"]),
+    ("server I/O FIFO + busy poll, client FIFO", ["--realtime-io", "--busy-poll"], ["--realtime"]),
+    ("server I/O FIFO + busy poll in a normal-priority loop, client FIFO",
+     ["--realtime-io", "--busy-poll", "--no-realtime"], ["--realtime"]),
 ]
 
 
@@ -84,7 +90,8 @@ def main():
     ap.add_argument("--trials", type=int, default=5)
     ap.add_argument("--seconds", type=float, default=10)
     ap.add_argument("--rate-hz", type=float, default=1000)
-    ap.add_argument("--only", help="comma-separated variant indices to run (0 is the default)")
+    ap.add_argument("--only", help="comma-separated indices into VARIANTS to run (the first is the "
+                                   "reference of the ratios; 0 is the default)")
     args = ap.parse_args()
     variants = VARIANTS
     if args.only:

@@ -5,14 +5,18 @@
 //   conica-server --generate-keys keys --key-name server      keys/server.key, keys/server.pub
 //   conica-server --curve-server-key keys/server.key --curve-clients keys/clients
 //                                       CURVE: encrypted, only clients with a key in keys/clients
+#include <pthread.h>
+#include <sched.h>
 #include <signal.h>
 #include <spdlog/spdlog.h>
 #include <time.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <string>
+#include <thread>
 #include <zmq.hpp>
 
 #include "net/builtin_scenes.h"
@@ -24,6 +28,18 @@
 #endif
 
 namespace {
+
+// Can a thread of this process run SCHED_FIFO at `priority`? Tried on a scratch thread, because
+// libzmq aborts when it cannot apply a context's thread scheduling options.
+bool fifo_allowed(int priority) {
+  bool ok = false;
+  std::thread([&] {
+    sched_param sp{};
+    sp.sched_priority = priority;
+    ok = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
+  }).join();
+  return ok;
+}
 
 std::string load_scene_file(const std::string& path, conica::BodySpec* spec) {
 #if defined(CONICA_HAVE_SCENE)
@@ -63,6 +79,9 @@ int main(int argc, char** argv) {
                "spin on the sockets between ticks instead of sleeping (lower latency, a whole core)");
   int io_threads = 1;
   app.add_option("--io-threads", io_threads, "ZeroMQ I/O threads")->check(CLI::Range(1, 16));
+  bool realtime_io = false;
+  app.add_flag("--realtime-io", realtime_io,
+               "run the ZeroMQ I/O threads SCHED_FIFO (priority 80), also with --no-realtime");
   std::string curve_key, curve_clients, generate_dir, key_name = "server";
   app.add_option("--curve-server-key", curve_key,
                  "CURVE: the server's key file (public + secret, from --generate-keys)")
@@ -130,6 +149,16 @@ int main(int argc, char** argv) {
   }
 
   zmq::context_t context(io_threads);
+  if (realtime_io) {  // independent of --no-realtime (the loop thread's own policy)
+    const int priority = std::min(80, sched_get_priority_max(SCHED_FIFO));
+    if (fifo_allowed(priority)) {
+      context.set(zmq::ctxopt::thread_sched_policy, SCHED_FIFO);
+      context.set(zmq::ctxopt::thread_priority, priority);
+      spdlog::info("ZeroMQ I/O threads run SCHED_FIFO priority {}", priority);
+    } else {
+      spdlog::info("SCHED_FIFO refused for the ZeroMQ I/O threads; they run at normal priority");
+    }
+  }
   {
     conica::net::Server server(context, opt);
     if (err = server.load(spec); err.empty()) err = server.start();
