@@ -8,12 +8,15 @@ and after the server was silent (a restart), and serves on one HTTP port:
   /ws          a WebSocket; each client gets
                  binary  mesh       [u32 2][u32 num_nodes][u32 num_triangles][u32 mesh_id]
                                     float32 rest_positions[3 n], uint32 triangles[3 t]
-                 binary  positions  [u32 1][u32 num_nodes][f64 tick][f64 time] float32[3 n]
+                 binary  positions  [u32 1][u32 num_nodes][f64 tick][f64 time][f64 received]
+                                    float32[3 n]; received: ms since the epoch when the bridge
+                                    took the frame off the state socket (the page's frame age)
                  text    JSON       {"type": "state", tick, time, probes, stats, bridge}
                                     {"type": "status", server: "connected" | "waiting", ...}
+                 the page answers each positions message with the text "ack"
 All little-endian. Conflating: the bridge keeps only the newest frame, and each client is sent the
-newest frame when its previous send has drained, so a slow client or a slow parse drops frames and
-never lags behind the simulation.
+newest frame when it has acknowledged the previous one, so at most one frame is on its way to a
+page: a slow page or a large body drops frames and never lags behind the simulation.
 
     PYTHONPATH=build/proto/gen /usr/bin/python3 viewer/bridge.py            # default endpoints
     ... --state tcp://127.0.0.1:5556 --control tcp://127.0.0.1:5557 --port 8080
@@ -37,6 +40,7 @@ from conica.v1 import messages_pb2 as pb
 HERE = os.path.dirname(os.path.abspath(__file__))
 POSITIONS, MESH = 1, 2
 STALE_S = 1.5  # no state frame for this long: the server is gone (or paused)
+ACK_TIMEOUT_S = 1.0  # a page that does not acknowledge positions frames still gets one a second
 
 STAT_FIELDS = ("ticks", "missed_ticks", "rate_hz", "lateness_p50_us", "lateness_p99_us",
                "lateness_max_us", "step_p50_us", "step_p99_us", "step_max_us", "rollbacks",
@@ -144,6 +148,7 @@ class Bridge:
                 self.set_status("waiting", f"no state frames from {self.args.state}")
                 continue
             newest = None
+            received_ms = 0.0
             while True:  # drain: keep only the newest frame
                 try:
                     parts = await sub.recv_multipart(zmq.NOBLOCK)
@@ -151,6 +156,7 @@ class Bridge:
                     break
                 if len(parts) == 2 and parts[0] == b"S":
                     newest = parts[1]
+                    received_ms = time.time() * 1e3
                     self.frames_in += 1
             if newest is None:
                 continue
@@ -160,9 +166,9 @@ class Bridge:
                 continue
             if not msg.HasField("state"):
                 continue
-            self.on_state(msg.state, newest)
+            self.on_state(msg.state, newest, received_ms)
 
-    def on_state(self, st, raw):
+    def on_state(self, st, raw, received_ms):
         now = time.monotonic()
         restarted = self.last_tick is not None and (
             now - self.last_frame > STALE_S or st.tick < self.last_tick)
@@ -177,8 +183,8 @@ class Bridge:
             self.set_status("connected", f"state {self.args.state}", publish=False)
         pos = packed_positions(raw)
         if pos is not None and len(pos) == 12 * st.num_nodes and st.num_nodes > 0:
-            self.hub.positions = struct.pack("<IIdd", POSITIONS, st.num_nodes, float(st.tick),
-                                             st.time) + pos
+            self.hub.positions = struct.pack("<IIddd", POSITIONS, st.num_nodes, float(st.tick),
+                                             st.time, received_ms) + pos
         s = st.stats
         self.hub.info = json.dumps({
             "type": "state", "tick": st.tick, "time": st.time, "num_nodes": st.num_nodes,
@@ -244,15 +250,29 @@ class Bridge:
     # ---- browser side -------------------------------------------------------------------------
 
     async def client(self, ws, path=None):
+        """Sends each client the newest state, one positions frame in flight at a time: the next
+        goes when the page has acknowledged the previous (text "ack") or after ACK_TIMEOUT_S.
+        Without that, the sockets' buffers between here and the page's script (megabytes on
+        loopback) would queue seconds of large frames whenever the page draws slower than the
+        server publishes; with it, frames published meanwhile are skipped and the page gets the
+        newest."""
         self.clients += 1
         sent_version, sent_mesh, sent_status = -1, 0, None
+        acked = asyncio.Event()
+        acked.set()
+
+        async def read_acks():
+            async for m in ws:
+                if m == "ack":
+                    acked.set()
+
+        reader = asyncio.create_task(read_acks())
         try:
             while True:
                 await self.hub.wait_newer(sent_version)
                 hub = self.hub
                 if hub.version == sent_version:
                     continue
-                sent_version = hub.version
                 if hub.status is not sent_status:
                     sent_status = hub.status
                     await ws.send(json.dumps(hub.status))
@@ -260,15 +280,23 @@ class Bridge:
                     sent_mesh = hub.mesh_id
                     await ws.send(hub.mesh)
                 if sent_mesh and hub.positions is not None:
-                    # send() waits while the socket's buffer is full: frames published meanwhile
-                    # are skipped, the next loop sends the newest.
+                    try:
+                        await asyncio.wait_for(acked.wait(), ACK_TIMEOUT_S)
+                    except asyncio.TimeoutError:
+                        pass
+                    if reader.done():
+                        break  # the page has gone
+                    hub = self.hub  # newer frames may have come while waiting: send the newest
+                    acked.clear()
                     await ws.send(hub.positions)
                     self.frames_sent += 1
                 if hub.info is not None:
                     await ws.send(hub.info)
+                sent_version = hub.version
         except websockets.ConnectionClosed:
             pass
         finally:
+            reader.cancel()
             self.clients -= 1
 
     def static(self, path, headers):

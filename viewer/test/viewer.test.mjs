@@ -1,39 +1,24 @@
 // Real-browser test of the viewer: conica-server on free loopback ports, viewer/bridge.py in front
 // of it, the page in headless Chromium (Debian's /usr/bin/chromium driven by playwright-core).
 // Checks that the page connects, that frames arrive and are shown, that the surface moves when a
-// scripted probe presses into the body, and that the loop statistics are on screen; saves a
-// screenshot taken during the press.
+// scripted probe presses into the body, that the loop statistics are on screen, and that frames
+// are dropped rather than queued: the age of the frames drawn during the press (bridge receipt ->
+// drawn) stays within a few display intervals. Saves a screenshot taken during the press.
 //
 //   node viewer/test/viewer.test.mjs --server build/bin/conica-server --probe build/bin/conica-probe \
 //     --gen build/proto/gen --screenshot build/viewer/viewer.png
-// Optional: --scene FILE (default: the built-in cube), --at x,y,z --axis A --depth m (the press),
+// Optional: --scene FILE (default: the built-in cube), --server-args '...' (more server options,
+// e.g. '--rate-hz 30' for a body too large for 1 kHz), --at x,y,z --axis A --depth m (the press),
 // --probe-radius m, --up z|y, --chromium PATH, --python PATH.
-import { spawn } from 'node:child_process';
 import fs from 'node:fs';
-import net from 'node:net';
 import os from 'node:os';
 import path from 'node:path';
-import { fileURLToPath } from 'node:url';
-import { chromium } from 'playwright-core';
+import { launchBrowser, parseArgs, sleep, start, startStack, stopAll } from './stack.mjs';
 
-const here = path.dirname(fileURLToPath(import.meta.url));
-const viewerDir = path.resolve(here, '..');
-
-function parseArgs(argv) {
-  const a = {
-    chromium: '/usr/bin/chromium', python: '/usr/bin/python3', scene: '', at: '', axis: '',
-    depth: '0.006', probeRadius: '0.005', up: 'z', screenshot: '', limit: '150',
-  };
-  for (let i = 2; i < argv.length; i += 2) {
-    const k = argv[i].replace(/^--/, '').replace(/-([a-z])/g, (_, c) => c.toUpperCase());
-    if (!(k in a) && !['server', 'probe', 'gen'].includes(k)) throw new Error(`unknown option ${argv[i]}`);
-    a[k] = argv[i + 1];
-  }
-  for (const k of ['server', 'probe', 'gen']) if (!a[k]) throw new Error(`--${k} is required`);
-  return a;
-}
-
-const args = parseArgs(process.argv);
+const args = parseArgs(process.argv, {
+  chromium: '/usr/bin/chromium', python: '/usr/bin/python3', scene: '', serverArgs: '', at: '',
+  axis: '', depth: '0.006', probeRadius: '0.005', up: 'z', screenshot: '', limit: '150',
+}, ['server', 'probe', 'gen']);
 const t0 = Date.now();
 const log = (...m) => console.log(`[${((Date.now() - t0) / 1000).toFixed(1)} s]`, ...m);
 let failures = 0;
@@ -42,78 +27,19 @@ function check(cond, what) {
   if (!cond) failures += 1;
   return cond;
 }
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
-
-async function freePorts(n) {
-  const servers = [];
-  for (let i = 0; i < n; ++i) {
-    const s = net.createServer();
-    await new Promise((r) => s.listen(0, '127.0.0.1', r));
-    servers.push(s);
-  }
-  const ports = servers.map((s) => s.address().port);
-  await Promise.all(servers.map((s) => new Promise((r) => s.close(r))));
-  return ports;
-}
-
-const children = [];
-function start(name, cmd, argv, env, logFile) {
-  const out = fs.openSync(logFile, 'w');
-  const child = spawn(cmd, argv, { env: { ...process.env, ...env }, stdio: ['ignore', out, out] });
-  child.name = name;
-  child.exited = new Promise((r) => child.on('exit', (code, sig) => r(code ?? sig)));
-  children.push(child);
-  return child;
-}
-async function stopAll() {
-  for (const c of children) {
-    if (c.exitCode === null && c.signalCode === null) c.kill('SIGTERM');
-  }
-  for (const c of children) {
-    const done = await Promise.race([c.exited, sleep(5000).then(() => 'timeout')]);
-    if (done === 'timeout') c.kill('SIGKILL');
-  }
-}
-async function waitForLine(file, pattern, ms) {
-  const end = Date.now() + ms;
-  while (Date.now() < end) {
-    if (fs.existsSync(file) && pattern.test(fs.readFileSync(file, 'utf8'))) return true;
-    await sleep(100);
-  }
-  return false;
-}
-
 async function main() {
   const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'conica-viewer-'));
-  const [pp, sp, cp, hp] = await freePorts(4);
-  const ep = (p) => `tcp://127.0.0.1:${p}`;
-  const scene = args.scene ? ['--scene', args.scene] : ['--builtin', 'cube'];
-  start('server', args.server, [...scene, '--probe-endpoint', ep(pp), '--state-endpoint', ep(sp),
-    '--control-endpoint', ep(cp), '--seconds', args.limit, '--stats-seconds', '0', '--no-realtime'],
-  {}, path.join(tmp, 'server.log'));
-  start('bridge', args.python, [path.join(viewerDir, 'bridge.py'), '--state', ep(sp),
-    '--control', ep(cp), '--port', String(hp), '--probe-radius', args.probeRadius,
-    '--seconds', args.limit], { PYTHONPATH: args.gen }, path.join(tmp, 'bridge.log'));
-  if (!check(await waitForLine(path.join(tmp, 'bridge.log'), /serving http/, 15000),
-    'bridge serves the page')) {
-    console.log(fs.readFileSync(path.join(tmp, 'bridge.log'), 'utf8'));
-    return;
-  }
-  log(`server ${ep(pp)} ${ep(sp)} ${ep(cp)}, page http://127.0.0.1:${hp}/`);
+  const stack = await startStack({ ...args, seconds: args.limit, dir: tmp });
+  if (!check(stack !== null, 'bridge serves the page')) return;
+  log(`server ${stack.probe} ${stack.state} ${stack.control}, page ${stack.url}`);
 
-  const browser = await chromium.launch({
-    executablePath: args.chromium,
-    headless: true,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-      '--disable-background-networking', '--disable-component-update', '--disable-sync',
-      '--enable-unsafe-swiftshader', '--use-angle=swiftshader'],
-  });
+  const browser = await launchBrowser(args.chromium);
   try {
     const page = await browser.newPage({ viewport: { width: 1280, height: 800 } });
     const errors = [];
     page.on('pageerror', (e) => errors.push(String(e)));
     page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-    await page.goto(`http://127.0.0.1:${hp}/?up=${args.up}`);
+    await page.goto(`${stack.url}?up=${args.up}`);
 
     const connected = await page.waitForFunction(
       () => window.conica && window.conica.status === 'connected' && window.conica.framesApplied > 0,
@@ -140,10 +66,11 @@ async function main() {
 
     // press: the scripted probe, in real time, while the page is watched. On a loaded machine the
     // page may draw too rarely to catch a press; one more press is allowed before failing.
-    let peak = 0, shot = false, contactSeen = false, code = null;
+    let peak = 0, shot = false, contactSeen = false, code = null, perf = null;
     for (let attempt = 1; attempt <= 2 && !(contactSeen && peak > rest + 1e-4); ++attempt) {
       if (attempt > 1) log('the page did not see the press: pressing once more');
-      const probeArgs = ['--endpoint', ep(pp), '--script', 'press', '--depth', args.depth,
+      await page.evaluate(() => window.conica.perf.reset());
+      const probeArgs = ['--endpoint', stack.probe, '--script', 'press', '--depth', args.depth,
         '--hold', '3', '--realtime', '-o', path.join(tmp, `press${attempt}.csv`)];
       if (args.at) probeArgs.push('--at', args.at);
       if (args.axis) probeArgs.push('--axis', args.axis);
@@ -169,6 +96,7 @@ async function main() {
       code = await Promise.race([probe.exited, sleep(10000).then(() => 'timeout')]);
       await sleep(500);  // the last frames of the hold reach the page
       peak = Math.max(peak, await page.evaluate(() => window.conica.peakDisplacement));
+      perf = await page.evaluate(() => window.conica.perf.summary());
     }
     check(code === 0, `conica-probe press exits 0 (${code})`);
     check(contactSeen, 'the page saw the probe in contact');
@@ -178,7 +106,22 @@ async function main() {
     check(shot || !args.screenshot, 'screenshot taken during the press');
     const s2 = await page.evaluate(() => ({ ...window.conica }));
     check(s2.framesApplied <= s2.framesReceived, 'never shows more frames than received');
-    log(`meshes ${s2.meshes}, peak ${(s2.peakDisplacement * 1e3).toFixed(3)} mm, now ${(s2.maxDisplacement * 1e3).toFixed(3)} mm; frames received ${s2.framesReceived}, shown ${s2.framesApplied}, dropped ${s2.framesDropped}, `
+    // Frames dropped, not queued. One positions frame is in flight to the page at a time (the
+    // bridge waits for its ack) and the page draws the newest it has, so a frame waits at most for
+    // the page to take the previous one (one display interval), for the next display frame (one
+    // more) and for its draw: its age stays within a few display intervals, whatever the body's
+    // size. A queue anywhere on the way would instead grow the age with every frame the page
+    // cannot draw (seconds within this press for a large body; measured in docs/viewer.md).
+    const f = (v) => v.toFixed(0);
+    log(`during the press: ${perf.displayFps.toFixed(1)} fps drawn, ${perf.publishedPerS.toFixed(1)} frames/s `
+      + `from the server, ${perf.receivedPerS.toFixed(1)}/s received, ${perf.droppedPerS.toFixed(1)}/s dropped by the page; display interval p50/p95 `
+      + `${f(perf.intervalMs.p50)}/${f(perf.intervalMs.p95)} ms, apply p50 ${perf.applyMs.p50.toFixed(2)} ms, `
+      + `frame age p50/p95/max ${f(perf.ageMs.p50)}/${f(perf.ageMs.p95)}/${f(perf.ageMs.max)} ms `
+      + `(${perf.ageMs.n} frames)`);
+    const bound = 4 * perf.intervalMs.p95 + 250;
+    check(perf.ageMs.n >= 5 && perf.ageMs.p95 <= bound,
+      `frame age bounded: p95 ${f(perf.ageMs.p95)} ms <= 4 x display interval p95 + 250 ms = ${f(bound)} ms`);
+    log(`meshes ${s2.meshes}, ${s2.numNodes} nodes, peak ${(s2.peakDisplacement * 1e3).toFixed(3)} mm, now ${(s2.maxDisplacement * 1e3).toFixed(3)} mm; frames received ${s2.framesReceived}, shown ${s2.framesApplied}, dropped ${s2.framesDropped}, `
       + `apply ${s2.applyMs.toFixed(2)} ms, display ${s2.fps.toFixed(0)} fps`);
     check(errors.length === 0, `no page errors${errors.length ? ': ' + errors.join(' | ') : ''}`);
   } finally {
