@@ -34,6 +34,10 @@ VARIANTS = [
     ("server I/O FIFO + busy poll, client FIFO", ["--realtime-io", "--busy-poll"], ["--realtime"]),
     ("server I/O FIFO + busy poll in a normal-priority loop, client FIFO",
      ["--realtime-io", "--busy-poll", "--no-realtime"], ["--realtime"]),
+    ("server I/O FIFO + busy poll resting 10 % of a period after each probe, client FIFO",
+     ["--realtime-io", "--busy-poll", "--busy-poll-fraction", "0.9"], ["--realtime"]),
+    ("server I/O FIFO + busy poll resting 25 % of a period after each probe, client FIFO",
+     ["--realtime-io", "--busy-poll", "--busy-poll-fraction", "0.75"], ["--realtime"]),
 ]
 
 

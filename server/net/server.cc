@@ -98,6 +98,9 @@ struct Server::Loop {
   std::array<zmq::message_t, kMaxFrames> frames;
 
   Clock period_ns = 1000000;
+  Clock rest_ns = 0;         // busy poll: rest in ppoll this long after a probe (see rest_after)
+  Clock rest_until_ns = 0;
+  Clock last_probe_ns = 0;
   std::uint64_t positions_every = 0;  // ticks between "S" frames (0: never)
   RollingWindow lateness, input, stepping, publish;
   LoopStatsData stats;
@@ -182,8 +185,8 @@ struct Server::Loop {
   void try_realtime() {
     prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
     if (opt.busy_poll)
-      spdlog::warn("busy poll: the loop thread spins on its sockets between ticks and uses a "
-                   "whole core");
+      spdlog::warn("busy poll: the loop thread spins on its sockets (resting {:.0f} % of a period "
+                   "after each probe) and uses a whole core", 100 * (1 - opt.busy_poll_fraction));
     if (!opt.realtime) return;
     sched_param sp{};
     sp.sched_priority = std::min(80, sched_get_priority_max(SCHED_FIFO));
@@ -416,15 +419,26 @@ struct Server::Loop {
 
   bool readable(zmq::socket_t& s) { return (s.get(zmq::sockopt::events) & ZMQ_POLLIN) != 0; }
 
+  // Busy poll: after a probe is answered (and after a tick when no probe came for a period) the
+  // loop rests in ppoll for (1 - busy_poll_fraction) of a period before spinning again. A client
+  // at the loop's rate sends its next probe about a period later, so it usually finds the loop
+  // spinning, while the thread still sleeps part of every period.
+  void rest_after(Clock t) { rest_until_ns = t + rest_ns; }
+
   // Serves probes and control until the absolute deadline.
   void wait_until(Clock deadline) {
     for (;;) {
+      const std::uint64_t seen = stats.probes_received;
       drain_probes();
       drain_control();
       if (srv.stop_.load(std::memory_order_relaxed)) return;
       const Clock t = now_ns();
+      if (stats.probes_received != seen) {
+        last_probe_ns = t;
+        rest_after(t);
+      }
       if (t >= deadline) return;
-      if (opt.busy_poll) {
+      if (opt.busy_poll && t >= rest_until_ns) {
         // ZMQ_EVENTS processes the I/O thread's commands, so a message that arrived is seen
         // here without any file-descriptor wake-up.
         if (!readable(probe) && !readable(control)) cpu_relax();
@@ -438,7 +452,9 @@ struct Server::Loop {
       // EAGAIN, check the events once more before sleeping on it.
       if (readable(probe) || readable(control)) continue;
       pollfd fds[2] = {{probe_fd, POLLIN, 0}, {control_fd, POLLIN, 0}};
-      const timespec timeout = to_timespec(deadline - t - kFinalSleepNs);
+      Clock wake = deadline - kFinalSleepNs;
+      if (opt.busy_poll) wake = std::min(wake, rest_until_ns);  // then spin again
+      const timespec timeout = to_timespec(wake - t);
       const int r = ppoll(fds, 2, &timeout, nullptr);
       if (r < 0 && errno != EINTR) sleep_until(deadline);  // cannot poll: keep the rate anyway
     }
@@ -495,6 +511,7 @@ struct Server::Loop {
     try_realtime();
     stats.rate_hz = opt.rate_hz;
     period_ns = static_cast<Clock>(std::llround(1e9 / opt.rate_hz));
+    rest_ns = static_cast<Clock>((1.0 - opt.busy_poll_fraction) * static_cast<double>(period_ns));
     set_positions_rate(opt.positions_hz);
     Clock next = now_ns() + period_ns;
     next_log_ns = now_ns() + static_cast<Clock>(opt.log_period_s * 1e9);
@@ -504,15 +521,19 @@ struct Server::Loop {
       const Clock wake = now_ns();
       lateness.add(wake > next ? (wake - next) * 1e-3 : 0.0);
 
+      const std::uint64_t seen = stats.probes_received;
       drain_probes();  // input: whatever arrived during the last stretch
       drain_control();
       const Clock t_in = now_ns();
+      if (stats.probes_received != seen) last_probe_ns = t_in;
       if (!paused) step(*model, state, *ws);
       const Clock t_step = now_ns();
       ++stats.ticks;
       publish_state(false);
       if (positions_every && stats.ticks % positions_every == 0) publish_state(true);
       const Clock t_pub = now_ns();
+      if (opt.busy_poll && (t_pub - last_probe_ns > period_ns || last_probe_ns >= t_in))
+        rest_after(t_pub);  // no client at the rate, or one just answered: rest first
       input.add((t_in - wake) * 1e-3);
       stepping.add((t_step - t_in) * 1e-3);
       publish.add((t_pub - t_step) * 1e-3);

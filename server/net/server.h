@@ -51,6 +51,12 @@ struct ServerOptions {
   // sleeping in ppoll on their file descriptors: no wake-up on a probe's arrival, at the price of
   // a whole core (only sensible with a core to spare; logged at start).
   bool busy_poll = false;
+  // With busy_poll: after answering a probe (and after a tick with no probe in the last period)
+  // the loop first waits in ppoll, as without busy poll, for (1 - busy_poll_fraction) of a
+  // period, then spins. A SCHED_FIFO loop that spins all the time is stopped by the kernel's
+  // real-time throttling (sched_rt_runtime_us: by default 50 ms in every second); resting keeps
+  // it under that budget, and a client at the loop's rate still finds it spinning.
+  double busy_poll_fraction = 1.0;
   int window = 2048;              // ticks in the rolling statistics window
   bool refuse_slow_scene = true;  // refuse a scene whose median step cost exceeds the period
   // LOAD_SCENE: path -> spec; returns an error message (empty on success). Unset: refused.

@@ -8,9 +8,12 @@
 // Low-latency options: --spin-us N busy-waits (polling the socket) through the last N us before
 // each send instead of sleeping; --busy-poll-us N keeps polling the socket without sleeping
 // for up to N us after each send or until its reply is in (never past the next send's spin or
-// sleep); --io-threads sets the ZeroMQ I/O threads. Timer slack is always 1 ns.
+// sleep); --io-threads sets the ZeroMQ I/O threads; --realtime runs this thread and the I/O
+// threads SCHED_FIFO (when allowed). Timer slack is always 1 ns.
 // After the last send, replies are awaited for --drain seconds; the rest are lost.
 // The server's loop statistics (tick lateness, missed ticks) come from control GET_STATS.
+#include <pthread.h>
+#include <sched.h>
 #include <sys/prctl.h>
 
 #include <algorithm>
@@ -19,6 +22,7 @@
 #include <fstream>
 #include <iostream>
 #include <string>
+#include <thread>
 
 #include <CLI/CLI.hpp>
 
@@ -38,6 +42,7 @@ int main(int argc, char** argv) {
   std::string curve_server_pub, curve_key;
   double spin_us = 0, busy_poll_us = 0;
   int io_threads = 1;
+  bool realtime = false;
   app.add_option("--endpoint", endpoint, "probe ROUTER of the server");
   app.add_option("--control-endpoint", control, "control ROUTER of the server ('' to skip stats)");
   app.add_option("--rate-hz", rate_hz, "updates per second")->check(CLI::Range(1.0, 100000.0));
@@ -57,6 +62,7 @@ int main(int argc, char** argv) {
                  "us after each send spent polling for its reply without sleeping")
       ->check(CLI::Range(0.0, 1e6));
   app.add_option("--io-threads", io_threads, "ZeroMQ I/O threads")->check(CLI::Range(1, 16));
+  app.add_flag("--realtime", realtime, "SCHED_FIFO (priority 70) for this thread and the ZeroMQ I/O threads");
   app.add_option("--curve-server-pub", curve_server_pub,
                  "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
   app.add_option("--curve-key", curve_key,
@@ -80,6 +86,25 @@ int main(int argc, char** argv) {
   prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);  // precise wake-ups (field notes: default slack 50 us)
 
   zmq::context_t context(io_threads);
+  if (realtime) {
+    // Tried on a scratch thread first: libzmq aborts when it cannot apply the I/O threads' policy.
+    constexpr int kPriority = 70;
+    bool allowed = false;
+    std::thread([&] {
+      sched_param sp{};
+      sp.sched_priority = kPriority;
+      allowed = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
+    }).join();
+    if (allowed) {
+      context.set(zmq::ctxopt::thread_sched_policy, SCHED_FIFO);
+      context.set(zmq::ctxopt::thread_priority, kPriority);
+      sched_param sp{};
+      sp.sched_priority = kPriority;
+      pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+    } else {
+      std::cerr << "conica-latency: SCHED_FIFO refused; running at normal priority\n";
+    }
+  }
   conica::v1::ControlReply before, after;
   std::string error;
   const bool have_stats = !control.empty() &&
