@@ -5,6 +5,8 @@
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 
@@ -15,14 +17,24 @@ double h_of(const Model& m) { return m.options.dt / m.options.substeps; }
 
 // Geometry of every spring as a vectorisable pass over plain arrays (kept out of line so the
 // compiler sees raw doubles, not Eigen storage, and emits gathers): positions (num_nodes x 3),
-// results structure-of-arrays.
-[[gnu::noinline]] int geometry_kernel(int ns, const double* __restrict X,
-                                      const int* __restrict si, const int* __restrict sj,
-                                      const double* __restrict l0, const double* __restrict b,
-                                      const double* __restrict lmin, double* __restrict ux,
-                                      double* __restrict uy, double* __restrict uz,
-                                      double* __restrict len, double* __restrict defl) {
-  int short_springs = 0;
+// results structure-of-arrays. Returns the smallest length - min_length.
+// The smallest room (length - min_length) is reduced as the int64 bit patterns of the doubles:
+// for rooms >= 0 their order is the doubles' order, any negative room gives a negative pattern
+// (that is all the hard-stop test needs: "none may be short"), and an integer min vectorises where
+// a floating-point one would need -ffinite-math-only. NaN patterns are large: ignored here, caught
+// by the guard after the step.
+constexpr std::int64_t kNoRoom = std::numeric_limits<std::int64_t>::max();
+double room_of(std::int64_t bits) {
+  return bits == kNoRoom ? std::numeric_limits<double>::infinity() : std::bit_cast<double>(bits);
+}
+
+[[gnu::noinline]] std::int64_t geometry_kernel(int ns, const double* __restrict X,
+                                         const int* __restrict si, const int* __restrict sj,
+                                         const double* __restrict l0, const double* __restrict b,
+                                         const double* __restrict lmin, double* __restrict ux,
+                                         double* __restrict uy, double* __restrict uz,
+                                         double* __restrict len, double* __restrict defl) {
+  std::int64_t slack = kNoRoom;
   for (int k = 0; k < ns; ++k) {
     const int i = 3 * si[k], j = 3 * sj[k];
     const double dx = X[j] - X[i], dy = X[j + 1] - X[i + 1], dz = X[j + 2] - X[i + 2];
@@ -34,9 +46,141 @@ double h_of(const Model& m) { return m.options.dt / m.options.substeps; }
     uz[k] = dz * inv;
     len[k] = l;
     defl[k] = b[k] * (l0[k] - l);
-    short_springs += l < lmin[k];
+    slack = std::min(slack, std::bit_cast<std::int64_t>(l - lmin[k]));
   }
-  return short_springs;
+  return slack;
+}
+
+// Geometry of springs in runs, in two passes per chunk: each run's end-to-end vectors are copied
+// as contiguous streams of the structure-of-arrays positions (node i + t to j + t), then one
+// loop over the whole chunk normalises them. Short runs (a lattice's rows) then cost only the
+// cheap copy, and the square roots and divisions run in one long vectorised loop.
+[[gnu::noinline]] void run_vectors(int n, const double* __restrict xi, const double* __restrict yi,
+                                   const double* __restrict zi, const double* __restrict xj,
+                                   const double* __restrict yj, const double* __restrict zj,
+                                   double* __restrict dx, double* __restrict dy,
+                                   double* __restrict dz) {
+  for (int t = 0; t < n; ++t) {
+    dx[t] = xj[t] - xi[t];
+    dy[t] = yj[t] - yi[t];
+    dz[t] = zj[t] - zi[t];
+  }
+}
+
+// Turns the vectors (ux, uy, uz) of n springs into unit directions, lengths and deflections, and
+// returns the smallest room to the hard stop (as bits, see kNoRoom).
+[[gnu::noinline]] std::int64_t normalise_chunk(int n, const double* __restrict l0,
+                                               const double* __restrict b,
+                                               const double* __restrict lmin,
+                                               double* __restrict ux, double* __restrict uy,
+                                               double* __restrict uz, double* __restrict len,
+                                               double* __restrict defl) {
+  std::int64_t slack = kNoRoom;
+  for (int t = 0; t < n; ++t) {
+    const double dx = ux[t], dy = uy[t], dz = uz[t];
+    const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double inv = 1.0 / std::max(l, 1e-300);
+    ux[t] = dx * inv;
+    uy[t] = dy * inv;
+    uz[t] = dz * inv;
+    len[t] = l;
+    defl[t] = b[t] * (l0[t] - l);
+    slack = std::min(slack, std::bit_cast<std::int64_t>(l - lmin[t]));
+  }
+  return slack;
+}
+
+// Adds sign * a P d of a run of springs to the node forces f (already offset to the run's first
+// node on that side). The two ends are separate calls, so every call writes one stream.
+[[gnu::noinline]] void scatter_run(int n, double sign, const double* __restrict a,
+                                   const double* __restrict load, const double* __restrict ux,
+                                   const double* __restrict uy, const double* __restrict uz,
+                                   double* __restrict fx, double* __restrict fy,
+                                   double* __restrict fz) {
+  for (int t = 0; t < n; ++t) {
+    const double c = sign * a[t] * load[t];
+    fx[t] += c * ux[t];
+    fy[t] += c * uy[t];
+    fz[t] += c * uz[t];
+  }
+}
+
+// Both ends at once, for a run whose two node ranges [i, i + n) and [j, j + n) do not overlap.
+[[gnu::noinline]] void scatter_run_pair(int n, const double* __restrict a,
+                                        const double* __restrict load,
+                                        const double* __restrict ux, const double* __restrict uy,
+                                        const double* __restrict uz, double* __restrict fxi,
+                                        double* __restrict fyi, double* __restrict fzi,
+                                        double* __restrict fxj, double* __restrict fyj,
+                                        double* __restrict fzj) {
+  for (int t = 0; t < n; ++t) {
+    const double c = a[t] * load[t];
+    const double gx = c * ux[t], gy = c * uy[t], gz = c * uz[t];
+    fxi[t] -= gx;
+    fyi[t] -= gy;
+    fzi[t] -= gz;
+    fxj[t] += gx;
+    fyj[t] += gy;
+    fzj[t] += gz;
+  }
+}
+
+// Node forces of the runs path: F = m (g - mu v) + (fx, fy, fz), F and V node-major (x, y, z).
+[[gnu::noinline]] void node_forces(int nn, const double* __restrict mass,
+                                   const double* __restrict V, const double* __restrict fx,
+                                   const double* __restrict fy, const double* __restrict fz,
+                                   const double* g, double mu, double* __restrict F) {
+  const double gx = g[0], gy = g[1], gz = g[2];
+  for (int i = 0; i < nn; ++i) {
+    F[3 * i] = mass[i] * (gx - mu * V[3 * i]) + fx[i];
+    F[3 * i + 1] = mass[i] * (gy - mu * V[3 * i + 1]) + fy[i];
+    F[3 * i + 2] = mass[i] * (gz - mu * V[3 * i + 2]) + fz[i];
+  }
+}
+
+// One explicit step of every node, branch-free: a = F w / m on free axes (fixed axes and fully
+// fixed nodes have free = 0 or 1/m = 0, so they do not move).
+[[gnu::noinline]] void advance_nodes(int nn, double h, bool symplectic, const double* __restrict F,
+                                     const double* __restrict inv_mass,
+                                     const double* __restrict free, double* __restrict X,
+                                     double* __restrict V) {
+  for (int i = 0; i < nn; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      const int k = 3 * i + c;
+      const double a = F[k] * inv_mass[i] * free[k];
+      if (symplectic) {
+        V[k] += h * a;            // eq. (22)
+        X[k] += h * V[k] * free[k];  // eq. (23)
+      } else {
+        X[k] += h * V[k] * free[k];
+        V[k] += h * a;
+      }
+    }
+  }
+}
+
+// Non-finite coordinates (x * 0 is NaN for NaN and Inf) and nodes faster than sqrt(vmax2).
+[[gnu::noinline]] void scan_state(int nn, const double* __restrict X, const double* __restrict V,
+                                  double vmax2, int* nonfinite, int* fast) {
+  int bad = 0, quick = 0;
+  for (int k = 0; k < 3 * nn; ++k) bad += !(X[k] * 0.0 == 0.0) + !(V[k] * 0.0 == 0.0);
+  for (int i = 0; i < nn; ++i)
+    quick += V[3 * i] * V[3 * i] + V[3 * i + 1] * V[3 * i + 1] + V[3 * i + 2] * V[3 * i + 2] > vmax2;
+  *nonfinite = bad;
+  *fast = quick;
+}
+
+// Nodes that moved by more than `reach` since the positions (px, py, pz).
+[[gnu::noinline]] int count_moved(int nn, const double* __restrict X, const double* __restrict px,
+                                  const double* __restrict py, const double* __restrict pz,
+                                  double reach) {
+  const double r2 = reach * reach;
+  int n = 0;
+  for (int i = 0; i < nn; ++i) {
+    const double dx = X[3 * i] - px[i], dy = X[3 * i + 1] - py[i], dz = X[3 * i + 2] - pz[i];
+    n += dx * dx + dy * dy + dz * dz > r2;
+  }
+  return n;
 }
 
 // Counts springs shorter than their hard-stop length, measured along the direction they had at
@@ -73,40 +217,143 @@ double h_of(const Model& m) { return m.options.dt / m.options.substeps; }
   return n;
 }
 
-// Returns the number of springs shorter than their hard-stop length.
-int spring_geometry(const Model& m, const std::vector<Vec3>& x, Workspace& ws) {
-  return geometry_kernel(m.num_springs(), x.front().data(), m.spring_i.data(), m.spring_j.data(),
-                         m.rest_length.data(), m.deflection_scale.data(), ws.min_length.data(),
-                         ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.length.data(),
-                         ws.deflection.data());
+// Keeps a structure-of-arrays copy of x (the positions of this geometry, for the hard-stop test).
+void copy_positions(const std::vector<Vec3>& x, Workspace& ws) {
+  const int nn = static_cast<int>(x.size());
+  for (int i = 0; i < nn; ++i) {
+    ws.px[i] = x[i].x();
+    ws.py[i] = x[i].y();
+    ws.pz[i] = x[i].z();
+  }
+}
+
+// Per-spring values of springs [k0, k1), each pointer at spring k0's entry.
+struct SpringValues {
+  double *ux, *uy, *uz, *length, *deflection, *load, *tangent;
+};
+
+// Loads of springs [k0, k1) of group g from their deflections: card law, damper, Maxwell branch.
+void group_loads(const Model& m, const State& s, const SpringGroup& g, int k0, int k1,
+                 const SpringValues& v) {
+  const int n = k1 - k0;
+  if (g.law) {
+    g.law->evaluate_batch(v.deflection, v.load, v.tangent, n);
+  } else {
+    const double hk = g.card.hooke_k;
+    for (int t = 0; t < n; ++t) {
+      v.load[t] = hk * v.deflection[t];
+      v.tangent[t] = hk;
+    }
+  }
+  if (!g.viscous) return;
+  const double c = g.card.damping, km = g.card.maxwell_k;
+  for (int t = 0; t < n; ++t) {
+    const int k = k0 + t;
+    const Vec3 d(v.ux[t], v.uy[t], v.uz[t]);
+    const double ldot = d.dot(s.v[m.spring_j[k]] - s.v[m.spring_i[k]]);
+    const double ddot = -m.deflection_scale[k] * ldot;
+    v.load[t] += c * ddot + km * (v.deflection[t] - s.maxwell[k]);
+    v.tangent[t] += km;
+  }
+}
+
+SpringValues values_at(Workspace& ws, int k) {
+  return {ws.ux.data() + k,      ws.uy.data() + k,   ws.uz.data() + k,     ws.length.data() + k,
+          ws.deflection.data() + k, ws.load.data() + k, ws.tangent.data() + k};
+}
+
+// Directions of every spring at the positions of the last geometry (px, py, pz), for a hard stop
+// after a step that kept them only chunk by chunk.
+void refresh_directions(const Model& m, Workspace& ws) {
+  const int ns = m.num_springs();
+  for (int k = 0; k < ns; ++k) {
+    const int i = m.spring_i[k], j = m.spring_j[k];
+    const Vec3 u(ws.px[j] - ws.px[i], ws.py[j] - ws.py[i], ws.pz[j] - ws.pz[i]);
+    const Vec3 d = u / std::max(u.norm(), 1e-300);
+    ws.ux[k] = d.x();
+    ws.uy[k] = d.y();
+    ws.uz[k] = d.z();
+  }
+  ws.directions_kept = true;
+}
+
+// Geometry and loads of every spring, and their forces summed into ws.force (which holds the
+// node terms already). Springs in runs go chunk by chunk (geometry, law, scatter), so a chunk's
+// per-spring values are reused from L1 rather than streamed through memory three times.
+void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep) {
+  const int nn = m.num_nodes();
+  copy_positions(s.x, ws);
+  const double* __restrict a = m.force_scale.data();
+  ws.directions_kept = true;
+  if (ws.runs.empty()) {
+    ws.slack = room_of(geometry_kernel(m.num_springs(), s.x.front().data(), m.spring_i.data(),
+                                       m.spring_j.data(), m.rest_length.data(),
+                                       m.deflection_scale.data(), ws.min_length.data(),
+                                       ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.length.data(),
+                                       ws.deflection.data()));
+    for (const SpringGroup& g : m.groups)
+      group_loads(m, s, g, g.begin, g.end, values_at(ws, g.begin));
+    const double* __restrict load = ws.load.data();
+    double* __restrict F = ws.force.front().data();
+    const int ns = m.num_springs();
+    for (int k = 0; k < ns; ++k) {
+      const double fk = a[k] * load[k];
+      const double fx = fk * ws.ux[k], fy = fk * ws.uy[k], fz = fk * ws.uz[k];
+      const int i = 3 * m.spring_i[k], j = 3 * m.spring_j[k];
+      F[i] -= fx;
+      F[i + 1] -= fy;
+      F[i + 2] -= fz;
+      F[j] += fx;
+      F[j + 1] += fy;
+      F[j + 2] += fz;
+    }
+    return;
+  }
+  // Chunk by chunk; unless kept (the implicit solver needs every spring's values), a chunk's
+  // values live in the chunk buffers only, and no per-spring array is streamed through memory.
+  ws.directions_kept = keep;
+  std::fill(ws.fx.begin(), ws.fx.end(), 0.0);
+  std::fill(ws.fy.begin(), ws.fy.end(), 0.0);
+  std::fill(ws.fz.begin(), ws.fz.end(), 0.0);
+  std::int64_t slack = kNoRoom;
+  for (const Workspace::Chunk& c : ws.chunks) {
+    const SpringValues v = keep ? values_at(ws, c.k0)
+                                : SpringValues{ws.chunk_ux.data(),     ws.chunk_uy.data(),
+                                               ws.chunk_uz.data(),     ws.chunk_length.data(),
+                                               ws.chunk_deflection.data(), ws.chunk_load.data(),
+                                               ws.chunk_tangent.data()};
+    for (int q = c.first_run; q < c.last_run; ++q) {
+      const Workspace::Run& r = ws.runs[q];
+      const int t = r.k - c.k0;
+      run_vectors(r.n, ws.px.data() + r.i, ws.py.data() + r.i, ws.pz.data() + r.i,
+                  ws.px.data() + r.j, ws.py.data() + r.j, ws.pz.data() + r.j, v.ux + t, v.uy + t,
+                  v.uz + t);
+    }
+    slack = std::min(slack, normalise_chunk(c.k1 - c.k0, m.rest_length.data() + c.k0,
+                                            m.deflection_scale.data() + c.k0,
+                                            ws.min_length.data() + c.k0, v.ux, v.uy, v.uz,
+                                            v.length, v.deflection));
+    group_loads(m, s, m.groups[c.group], c.k0, c.k1, v);
+    for (int q = c.first_run; q < c.last_run; ++q) {
+      const Workspace::Run& r = ws.runs[q];
+      const int t = r.k - c.k0;
+      if (r.j - r.i >= r.n) {
+        scatter_run_pair(r.n, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t,
+                         ws.fx.data() + r.i, ws.fy.data() + r.i, ws.fz.data() + r.i,
+                         ws.fx.data() + r.j, ws.fy.data() + r.j, ws.fz.data() + r.j);
+        continue;
+      }
+      for (const auto& [node, sign] : {std::pair{r.i, -1.0}, std::pair{r.j, 1.0}})
+        scatter_run(r.n, sign, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t,
+                    ws.fx.data() + node, ws.fy.data() + node, ws.fz.data() + node);
+    }
+  }
+  ws.slack = room_of(slack);
+  node_forces(nn, m.mass.data(), s.v.front().data(), ws.fx.data(), ws.fy.data(), ws.fz.data(),
+              m.options.gravity.data(), m.options.mass_damping, ws.force.front().data());
 }
 
 void hard_stop_project(const Model& m, State& s, Workspace& ws);
-
-// Geometry and card loads of every spring, with dampers and Maxwell branches.
-void spring_loads(const Model& m, State& s, Workspace& ws) {
-  spring_geometry(m, s.x, ws);
-  for (const SpringGroup& g : m.groups) {
-    const int n = g.end - g.begin;
-    if (g.law) {
-      g.law->evaluate_batch(&ws.deflection[g.begin], &ws.load[g.begin], &ws.tangent[g.begin], n);
-    } else {
-      const double k0 = g.card.hooke_k;
-      for (int k = g.begin; k < g.end; ++k) {
-        ws.load[k] = k0 * ws.deflection[k];
-        ws.tangent[k] = k0;
-      }
-    }
-    if (!g.viscous) continue;
-    const double c = g.card.damping, km = g.card.maxwell_k;
-    for (int k = g.begin; k < g.end; ++k) {
-      const double ldot = ws.dir(k).dot(s.v[m.spring_j[k]] - s.v[m.spring_i[k]]);
-      const double ddot = -m.deflection_scale[k] * ldot;
-      ws.load[k] += c * ddot + km * (ws.deflection[k] - s.maxwell[k]);
-      ws.tangent[k] += km;
-    }
-  }
-}
 
 void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
   const int nn = m.num_nodes();
@@ -196,24 +443,10 @@ void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
     contact_forces(m, s, ws, false);
     return;
   }
-  spring_loads(m, s, ws);
   const double mu = m.options.mass_damping;
-  for (int i = 0; i < nn; ++i) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
-  const int ns = m.num_springs();
-  double* __restrict F = ws.force.front().data();
-  const double* __restrict a = m.force_scale.data();
-  const double* __restrict load = ws.load.data();
-  for (int k = 0; k < ns; ++k) {
-    const double fk = a[k] * load[k];
-    const double fx = fk * ws.ux[k], fy = fk * ws.uy[k], fz = fk * ws.uz[k];
-    const int i = 3 * m.spring_i[k], j = 3 * m.spring_j[k];
-    F[i] -= fx;
-    F[i + 1] -= fy;
-    F[i + 2] -= fz;
-    F[j] += fx;
-    F[j + 1] += fy;
-    F[j + 2] += fz;
-  }
+  if (ws.runs.empty())  // the runs path writes the node terms with the spring forces
+    for (int i = 0; i < nn; ++i) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
+  spring_forces(m, s, ws, with_jacobian);
   contact_forces(m, s, ws, with_jacobian);
 }
 
@@ -243,6 +476,13 @@ void hard_stop(const Model& m, State& s, Workspace& ws) {
     if (n > 0) hard_stop_project(m, s, ws);
     return;
   }
+  // Measured along its direction at the last geometry, a spring is no shorter than its length
+  // then minus the motion of its two ends since: with no node moved by half the smallest room,
+  // none can be short.
+  if (ws.slack > 0 && count_moved(m.num_nodes(), s.x.front().data(), ws.px.data(), ws.py.data(),
+                                  ws.pz.data(), 0.5 * ws.slack) == 0)
+    return;
+  if (!ws.directions_kept) refresh_directions(m, ws);
   if (count_short(m.num_springs(), s.x.front().data(), m.spring_i.data(), m.spring_j.data(),
                   ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.min_length.data()) > 0)
     hard_stop_project(m, s, ws);
@@ -275,6 +515,11 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
   const double h = h_of(m);
   forces_impl(m, s, ws, false);
   const int nn = m.num_nodes();
+  if (!m.options.active_region) {
+    advance_nodes(nn, h, symplectic, ws.force.front().data(), m.inv_mass.data(),
+                  m.free_axes.front().data(), s.x.front().data(), s.v.front().data());
+    return;
+  }
   for (int i = 0; i < nn; ++i) {
     if (m.fixed[i] == 7 || !ws.awake[i]) continue;
     const Vec3 a = (ws.force[i] * m.inv_mass[i]).cwiseProduct(m.free_axes[i]);
@@ -451,12 +696,9 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
 
 bool state_ok(const Model& m, State& s) {
   const double vmax2 = m.options.max_speed * m.options.max_speed;
-  const int nn = m.num_nodes();
-  bool finite = true, slow = true;
-  for (int i = 0; i < nn; ++i) {
-    finite &= s.x[i].allFinite() && s.v[i].allFinite();
-    slow &= s.v[i].squaredNorm() <= vmax2;
-  }
+  int nonfinite = 0, fast = 0;
+  scan_state(m.num_nodes(), s.x.front().data(), s.v.front().data(), vmax2, &nonfinite, &fast);
+  const bool finite = nonfinite == 0, slow = fast == 0;
   if (!finite) ++s.counters.nan_events;
   if (finite && !slow) ++s.counters.speed_events;
   return finite && slow;
@@ -486,6 +728,39 @@ Workspace::Workspace(const Model& m) {
   alpha.assign(ns, 0);
   beta.assign(ns, 0);
   force.assign(nn, Vec3::Zero());
+  for (auto* v : {&px, &py, &pz, &fx, &fy, &fz}) v->assign(nn, 0.0);
+  for (auto* v : {&chunk_ux, &chunk_uy, &chunk_uz, &chunk_length, &chunk_deflection, &chunk_load,
+                  &chunk_tangent})
+    v->assign(kChunkSprings, 0.0);
+  // Runs, cut at group boundaries and into pieces of at most kChunk springs; chunks of whole
+  // pieces of one group, about kChunk springs each.
+  constexpr int kChunk = kChunkSprings;
+  for (int g = 0; g < static_cast<int>(m.groups.size()); ++g) {
+    const int end = m.groups[g].end;
+    Chunk chunk{g, static_cast<int>(runs.size()), 0, m.groups[g].begin, 0};
+    for (int k = m.groups[g].begin; k < end;) {
+      int n = 1;
+      while (k + n < end && n < kChunk && m.spring_i[k + n] == m.spring_i[k] + n &&
+             m.spring_j[k + n] == m.spring_j[k] + n)
+        ++n;
+      if (k + n - chunk.k0 > kChunk) {
+        chunk.last_run = static_cast<int>(runs.size());
+        chunk.k1 = k;
+        chunks.push_back(chunk);
+        chunk = Chunk{g, chunk.last_run, 0, k, 0};
+      }
+      runs.push_back({k, n, m.spring_i[k], m.spring_j[k]});
+      k += n;
+    }
+    chunk.last_run = static_cast<int>(runs.size());
+    chunk.k1 = end;
+    if (chunk.k1 > chunk.k0) chunks.push_back(chunk);
+  }
+  constexpr size_t kMinMeanRun = 4;  // shorter runs: the gather kernels are faster
+  if (ns < kMinMeanRun * runs.size()) {
+    runs.clear();
+    chunks.clear();
+  }
   diag_inv.assign(nn, Mat3::Zero());
   contact_n.assign(nn, Vec3::Zero());
   for (auto* v : {&x0, &v0, &rhs, &r, &z, &p, &ap, &dx, &good_x, &good_v}) v->assign(nn, Vec3::Zero());

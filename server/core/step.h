@@ -52,6 +52,30 @@ struct Workspace {
   std::vector<double> ux, uy, uz;                 // (num_springs) unit direction i -> j
   std::vector<double> min_length, min_length2;    // (num_springs) m and m^2, hard stop
   std::vector<Vec3> force;                        // (num_nodes) N
+  // Springs in runs: [k, k + n) join nodes i + t and j + t (t < n). Set when the model's springs
+  // are mostly in runs (lattices, see build_model); the step then reads positions and writes
+  // forces as contiguous streams of the structure-of-arrays copies below instead of gathering.
+  struct Run {
+    int k, n, i, j;
+  };
+  std::vector<Run> runs;                          // cut at groups, at most 256 springs each
+  // Consecutive runs of one group, about 256 springs: geometry, law and scatter run chunk by
+  // chunk. Runs [first_run, last_run), springs [k0, k1).
+  struct Chunk {
+    int group, first_run, last_run, k0, k1;
+  };
+  std::vector<Chunk> chunks;
+  static constexpr int kChunkSprings = 256;
+  // A chunk's direction, length, deflection, load and tangent when they are not kept per spring
+  // (explicit integrators; directions_kept false: ux, uy, uz are stale until refreshed).
+  std::vector<double> chunk_ux, chunk_uy, chunk_uz, chunk_length, chunk_deflection, chunk_load,
+      chunk_tangent;
+  bool directions_kept = true;
+  std::vector<double> px, py, pz;                 // (num_nodes) m, positions at the last geometry
+  std::vector<double> fx, fy, fz;                 // (num_nodes) N, spring forces being summed
+  // Smallest length - min_length over springs at the last geometry (m): while no node has moved
+  // by more than half of it, no spring can be short, and the hard-stop pass is skipped.
+  double slack = -1;
   // Implicit solver.
   std::vector<double> alpha, beta;                // (num_springs) system coefficients
   std::vector<Mat3> diag_inv;                     // (num_nodes) block-Jacobi preconditioner
