@@ -113,9 +113,38 @@ const material = opt.material === 'standard'
   ? new THREE.MeshStandardMaterial({ ...surfaceOptions, flatShading: true, roughness: 0.65, metalness: 0.0 })
   : opt.material === 'lambert' ? new THREE.MeshLambertMaterial({ ...surfaceOptions, flatShading: true })
     : new THREE.MeshBasicMaterial(surfaceOptions);
+// The triangle edges, 18 % black. With per-pixel materials: a wireframe mesh over the surface
+// (polygon offset keeps the surface behind it). With litFaces: in the surface's own fragment
+// shader, from each fragment's barycentric coordinates (a one-pixel, antialiased line where one
+// of them is near 0), applied after the sRGB encoding as the blended overlay would be; this
+// saves drawing ~3 lines per triangle, which software WebGL rasterises slowly.
+const WIRE_OPACITY = 0.18;
 const wireMaterial = new THREE.MeshBasicMaterial({
-  color: 0x000000, wireframe: true, transparent: true, opacity: 0.18,
+  color: 0x000000, wireframe: true, transparent: true, opacity: WIRE_OPACITY,
 });
+const edgeOpacity = { value: opt.wire ? WIRE_OPACITY : 0 };
+if (faceLit) {
+  // the server's surface triangles are wound outward (right-hand normals), so back faces can
+  // be culled: a closed body never shows them, and software WebGL does not shade them
+  material.side = THREE.FrontSide;
+  material.polygonOffset = false;
+  material.onBeforeCompile = (shader) => {
+    shader.uniforms.edgeOpacity = edgeOpacity;
+    shader.vertexShader = shader.vertexShader
+      .replace('#include <common>', '#include <common>\nattribute vec3 bary;\nvarying vec3 vBary;')
+      .replace('#include <begin_vertex>', '#include <begin_vertex>\nvBary = bary;');
+    shader.fragmentShader = shader.fragmentShader
+      .replace('#include <common>', '#include <common>\nuniform float edgeOpacity;\nvarying vec3 vBary;')
+      .replace('#include <colorspace_fragment>', `#include <colorspace_fragment>
+        vec3 edgeDist = vBary / max(fwidth(vBary), 1e-6);  // pixels to each edge
+        float edge = clamp(1.5 - 2.0 * min(min(edgeDist.x, edgeDist.y), edgeDist.z), 0.0, 1.0);
+        gl_FragColor.rgb *= 1.0 - edgeOpacity * edge;`);
+  };
+}
+function showWire(on) {
+  edgeOpacity.value = on ? WIRE_OPACITY : 0;
+  if (wire) wire.visible = on && !faceLit;
+}
 
 let geometry = null, surface = null, wire = null, grid = null;
 let posAttr = null, colAttr = null, rest = null, meshSize = 0.05;
@@ -159,12 +188,15 @@ function onMesh(buf) {
     faceCol = new THREE.BufferAttribute(new Float32Array(9 * t), 3).setUsage(THREE.DynamicDrawUsage);
     faceGeometry.setAttribute('position', facePos);
     faceGeometry.setAttribute('color', faceCol);
+    const bary = new Float32Array(9 * t);
+    for (let i = 0; i < 9 * t; i += 9) bary[i] = bary[i + 4] = bary[i + 8] = 1;
+    faceGeometry.setAttribute('bary', new THREE.BufferAttribute(bary, 3));
   }
   surface = new THREE.Mesh(faceLit ? faceGeometry : geometry, material);
   wire = new THREE.Mesh(geometry, wireMaterial);
   surface.frustumCulled = wire.frustumCulled = false;  // the body deforms
-  wire.visible = opt.wire;
   scene.add(surface, wire);
+  showWire(opt.wire);
   state.numNodes = n;
   state.numTriangles = t;
   state.meshes += 1;
@@ -480,6 +512,23 @@ state.perf.drawCost = (n = 20) => {
   return t.sort((a, b) => a - b)[n >> 1];
 };
 
+// drawCost(n) of the scene with each of its visible objects alone, and with none (the clear).
+state.perf.drawCostByObject = (n = 15) => {
+  const kids = scene.children, vis = kids.map((c) => c.visible), out = {};
+  const name = (c) => (c === surface ? 'surface' : c === wire ? 'wireframe' : c === grid ? 'grid' : c.type);
+  kids.forEach((c) => { c.visible = false; });
+  out.none = state.perf.drawCost(n);
+  kids.forEach((c, i) => {
+    if (!vis[i] || c.isCamera || c.isLight) return;
+    c.visible = true;
+    out[name(c)] = state.perf.drawCost(n);
+    c.visible = false;
+  });
+  kids.forEach((c, i) => { c.visible = vis[i]; });
+  out.all = state.perf.drawCost(n);
+  return out;
+};
+
 const wallNow = () => performance.timeOrigin + performance.now();  // ms since the epoch
 const lastView = new Float64Array(16);
 let gl = null;
@@ -502,6 +551,14 @@ function frame(now) {
   }
   if (faceLit && facesStale && posAttr) litFaces();
   const tApplied = performance.now();
+  if (!renderer) {  // nogl (or no WebGL): nothing to draw, count the display frames
+    const k = perf.count % PERF_N;
+    perf.interval[k] = now - lastDrawn;
+    perf.apply[k] = perf.render[k] = perf.age[k] = NaN;
+    perf.count += 1;
+    lastDrawn = now;
+    ++fpsFrames;
+  }
   if (renderer && (redraw || opt.empty)) {
     if (opt.empty) renderer.clear();
     else renderer.render(scene, camera);
@@ -536,7 +593,7 @@ window.addEventListener('resize', () => {
 window.addEventListener('keydown', (e) => {
   if (e.key === '+' || e.key === '=') state.forceScale = forceScale() * 1.5;
   else if (e.key === '-') state.forceScale = forceScale() / 1.5;
-  else if (e.key === 'w' && wire) wire.visible = !wire.visible;
+  else if (e.key === 'w') showWire(edgeOpacity.value === 0);
   else if (e.key === 'r') resetView();
   redraw = true;
 });

@@ -12,7 +12,8 @@
 // variant (5), --warmup s (2), --viewport WxH (1280x800), --gpu 0|1 (1: without --disable-gpu,
 // SwiftShader composites too), --press 1 (a scripted probe presses in a loop so the surface
 // moves; --at/--axis/--depth as in viewer.test.mjs), --repeat n (variants measured round-robin n
-// times), --json FILE (all summaries), --up z|y, --probe-radius m.
+// times), --json FILE (all summaries), --up z|y, --probe-radius m, --objects 1 (also the draw
+// cost of each object of the scene alone: perf.drawCostByObject).
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -21,7 +22,7 @@ import { launchBrowser, parseArgs, sleep, start, startStack, stopAll } from './s
 const args = parseArgs(process.argv, {
   chromium: '/usr/bin/chromium', python: '/usr/bin/python3', scene: '', serverArgs: '', variants: '',
   seconds: '5', warmup: '2', viewport: '1280x800', gpu: '0', press: '0', at: '', axis: '',
-  depth: '0.006', probeRadius: '0.005', up: 'z', repeat: '1', json: '',
+  depth: '0.006', probeRadius: '0.005', up: 'z', repeat: '1', json: '', objects: '0',
 }, ['server', 'probe', 'gen']);
 
 const f = (v, d = 1) => (Number.isFinite(v) ? v.toFixed(d) : '-');
@@ -63,6 +64,11 @@ async function main() {
         const s = await page.evaluate(() => ({ ...window.conica.perf.summary(),
           nodes: window.conica.numNodes, triangles: window.conica.numTriangles,
           drawCostMs: window.conica.perf.drawCost(25) }));
+        if (args.objects === '1') {
+          s.drawCostByObject = await page.evaluate(() => window.conica.perf.drawCostByObject());
+          console.log(`  draw cost by object, ms: ${Object.entries(s.drawCostByObject)
+            .map(([k, x]) => `${k} ${f(x, 2)}`).join(', ')}`);
+        }
         await page.close();
         rows.push({ variant: v, ...s });
         console.log(`${(v || '(default)').padEnd(30)} ${f(s.displayFps).padStart(5)} ${f(s.publishedPerS).padStart(6)} ${f(s.receivedPerS).padStart(6)} `
