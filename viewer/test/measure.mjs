@@ -13,7 +13,9 @@
 // SwiftShader composites too), --press 1 (a scripted probe presses in a loop so the surface
 // moves; --at/--axis/--depth as in viewer.test.mjs), --repeat n (variants measured round-robin n
 // times), --json FILE (all summaries), --up z|y, --probe-radius m, --objects 1 (also the draw
-// cost of each object of the scene alone: perf.drawCostByObject).
+// cost of each object of the scene alone: perf.drawCostByObject), --trace FILE (a Chromium trace
+// of each measured window, FILE-ROUND-VARIANT.json, and the medians of the events that show where
+// a frame's time goes: the page's wait for the canvas read back, SwiftShader's finish, the swap).
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -22,10 +24,34 @@ import { launchBrowser, parseArgs, sleep, start, startStack, stopAll } from './s
 const args = parseArgs(process.argv, {
   chromium: '/usr/bin/chromium', python: '/usr/bin/python3', scene: '', serverArgs: '', variants: '',
   seconds: '5', warmup: '2', viewport: '1280x800', gpu: '0', press: '0', at: '', axis: '',
-  depth: '0.006', probeRadius: '0.005', up: 'z', repeat: '1', json: '', objects: '0',
+  depth: '0.006', probeRadius: '0.005', up: 'z', repeat: '1', json: '', objects: '0', trace: '',
 }, ['server', 'probe', 'gen']);
 
 const f = (v, d = 1) => (Number.isFinite(v) ? v.toFixed(d) : '-');
+
+// Chromium trace events that show where a displayed frame's time goes with software WebGL.
+const TRACED = {
+  'GLES2::ReadPixels': 'page waits for the canvas read back (software compositing)',
+  'ContextVk::finishImpl': 'SwiftShader finishes the frame\'s draws',
+  'ImageHelper::readPixelsImpl - CPU Readback': 'read back incl. that finish',
+  'SkiaOutputSurfaceImplOnGpu::SwapBuffers': 'display swap (GPU-process compositing)',
+  'Display::DrawAndSwap': 'display compositor frame',
+  'ProxyMain::BeginMainFrame': 'page main-thread frame',
+};
+function traceSummary(file) {
+  const data = JSON.parse(fs.readFileSync(file, 'utf8'));
+  const events = Array.isArray(data) ? data : data.traceEvents;
+  const lines = [];
+  for (const [name, what] of Object.entries(TRACED)) {
+    const d = events.filter((e) => e.ph === 'X' && e.name === name).map((e) => e.dur / 1000)
+      .sort((a, b) => a - b);
+    if (d.length) {
+      lines.push(`    ${name} (${what}): ${d.length}x, p50 ${f(d[d.length >> 1], 2)} ms, `
+        + `sum ${f(d.reduce((a, b) => a + b, 0), 0)} ms`);
+    }
+  }
+  return lines.join('\n');
+}
 
 async function main() {
   const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'conica-viewer-measure-'));
@@ -59,11 +85,18 @@ async function main() {
         await page.waitForFunction(() => window.conica?.framesReceived > 0, null, { timeout: 30000 })
           .catch(() => {});
         await sleep(1000 * Number(args.warmup));
+        const traceFile = args.trace && `${args.trace.replace(/\.json$/, '')}-${r}-${variants.indexOf(v)}.json`;
+        if (traceFile) {
+          await browser.startTracing(page, { path: traceFile, categories: ['toplevel', 'gpu', 'viz',
+            'cc', 'blink', 'disabled-by-default-gpu.service', 'gpu.angle'] });
+        }
         await page.evaluate(() => window.conica.perf.reset());
         await sleep(1000 * Number(args.seconds));
+        if (traceFile) await browser.stopTracing();
         const s = await page.evaluate(() => ({ ...window.conica.perf.summary(),
           nodes: window.conica.numNodes, triangles: window.conica.numTriangles,
           drawCostMs: window.conica.perf.drawCost(25) }));
+        if (traceFile) console.log(`  trace ${traceFile}:\n${traceSummary(traceFile)}`);
         if (args.objects === '1') {
           s.drawCostByObject = await page.evaluate(() => window.conica.perf.drawCostByObject());
           console.log(`  draw cost by object, ms: ${Object.entries(s.drawCostByObject)
