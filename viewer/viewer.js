@@ -391,7 +391,7 @@ function updateHud(now) {
     `tick ${state.tick}   t ${fmt(state.time, 3)} s`,
     `nodes ${state.numNodes}   triangles ${state.numTriangles}`,
     `frames ${state.framesReceived}  shown ${state.framesApplied}  dropped ${state.framesDropped}`,
-    `display ${fmt(state.fps, 0)} fps   apply ${fmt(state.applyMs, 2)} ms   draw ${fmt(state.renderMs, 1)} ms`,
+    `display ${fmt(state.fps, 0)} fps   apply ${fmt(state.applyMs, 2)} ms   render() ${fmt(state.renderMs, 1)} ms`,
     `frame age ${fmt(state.frameAgeMs, 0)} ms`,
     `max displacement ${fmt(state.maxDisplacement * 1e3, 3)} mm`,
   ];
