@@ -311,6 +311,7 @@ void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep) {
   }
   // Chunk by chunk; unless kept (the implicit solver needs every spring's values), a chunk's
   // values live in the chunk buffers only, and no per-spring array is streamed through memory.
+  keep = keep || ws.hard_stop_near;  // the hard stop will need them: cheaper kept than refreshed
   ws.directions_kept = keep;
   std::fill(ws.fx.begin(), ws.fx.end(), 0.0);
   std::fill(ws.fy.begin(), ws.fy.end(), 0.0);
@@ -479,9 +480,10 @@ void hard_stop(const Model& m, State& s, Workspace& ws) {
   // Measured along its direction at the last geometry, a spring is no shorter than its length
   // then minus the motion of its two ends since: with no node moved by half the smallest room,
   // none can be short.
-  if (ws.slack > 0 && count_moved(m.num_nodes(), s.x.front().data(), ws.px.data(), ws.py.data(),
-                                  ws.pz.data(), 0.5 * ws.slack) == 0)
-    return;
+  ws.hard_stop_near = !(ws.slack > 0) || count_moved(m.num_nodes(), s.x.front().data(),
+                                                     ws.px.data(), ws.py.data(), ws.pz.data(),
+                                                     0.5 * ws.slack) > 0;
+  if (!ws.hard_stop_near) return;
   if (!ws.directions_kept) refresh_directions(m, ws);
   if (count_short(m.num_springs(), s.x.front().data(), m.spring_i.data(), m.spring_j.data(),
                   ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.min_length.data()) > 0)

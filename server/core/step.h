@@ -71,6 +71,7 @@ struct Workspace {
   std::vector<double> chunk_ux, chunk_uy, chunk_uz, chunk_length, chunk_deflection, chunk_load,
       chunk_tangent;
   bool directions_kept = true;
+  bool hard_stop_near = false;  // the last hard-stop test could not rule out a short spring
   std::vector<double> px, py, pz;                 // (num_nodes) m, positions at the last geometry
   std::vector<double> fx, fy, fz;                 // (num_nodes) N, spring forces being summed
   // Smallest length - min_length over springs at the last geometry (m): while no node has moved
