@@ -262,9 +262,12 @@ class Bridge:
         acked.set()
 
         async def read_acks():
-            async for m in ws:
-                if m == "ack":
-                    acked.set()
+            try:
+                async for m in ws:
+                    if m == "ack":
+                        acked.set()
+            except websockets.ConnectionClosed:
+                pass
 
         reader = asyncio.create_task(read_acks())
         try:
