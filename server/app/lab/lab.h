@@ -6,6 +6,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace conica::lab {
 
@@ -21,6 +22,17 @@ void register_active_region(CLI::App& app, Runner* run);
 void register_compress(CLI::App& app, Runner* run);
 void register_calibrate(CLI::App& app, Runner* run);
 void register_viscoelastic(CLI::App& app, Runner* run);
+void register_tradeoff(CLI::App& app, Runner* run);
+void register_plan(CLI::App& app, Runner* run);
+
+struct TradeoffRow;
+// The speed/accuracy sweep of conica-lab tradeoff (quick: the small one). Scenes are found from
+// the working directory or the source tree. Returns false with the reason in *error.
+// probe_stiffness: indentation probe penalty in N/m per node, 0 for the liver scene's own;
+// strain: the compression's final engineering strain; coarse_liver: a second liver mesh or "".
+bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, std::string* error,
+                    double probe_stiffness = 100, double strain = 0.3,
+                    const std::string& coarse_liver = "");
 
 // Runs `/usr/bin/python3 scripts/NAME.py ARGS...` from the source tree to draw a figure.
 // Returns the exit status; prints why on failure.

@@ -31,6 +31,8 @@ int main(int argc, char** argv) {
   conica::lab::register_compress(app, &run);
   conica::lab::register_calibrate(app, &run);
   conica::lab::register_viscoelastic(app, &run);
+  conica::lab::register_tradeoff(app, &run);
+  conica::lab::register_plan(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
