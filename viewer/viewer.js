@@ -1,16 +1,18 @@
 // conica viewer: the deforming surface of the body, the probes with their force arrows and the
 // server's loop statistics, from the bridge's WebSocket (viewer/bridge.py documents the messages).
 //
-// Frames are conflated twice: the bridge sends only the newest state, and the page keeps only the
-// newest positions message it has received and applies it once per displayed frame, so it never
-// lags behind the simulation; with a large body it shows fewer frames instead.
+// Frames are conflated twice: the bridge sends a page the newest state, one positions frame at a
+// time (the page acknowledges each), and the page keeps only the newest positions message it has
+// received and applies it once per drawn frame, so it never lags behind the simulation; with a
+// large body it shows fewer frames instead.
 //
 // URL parameters: ws=URL (default: this host's /ws), up=z|y (default z), force_scale=m per N.
-// Profiling switches (docs/viewer.md measures them): pr=device pixels per CSS pixel (default 1),
-// aa=1 (multisampling), mat=lambert|standard (three.js's per-pixel lit materials instead of the
-// per-triangle lighting below), pdb=1 (preserveDrawingBuffer), wire=0 (no
-// wireframe overlay; w toggles it), grid=0 (no floor grid), hud=0 (no text updates), empty=1 (draw nothing but the clear: the ceiling of
-// the canvas itself), nogl=1 (no WebGL canvas at all: the ceiling of the page), sync=1 (one pixel read back after each draw, so renderMs includes the rasterisation).
+// Profiling switches (docs/viewer.md measures them): pr=device pixels per CSS pixel (default: the
+// screen's, at most 2), aa=1 (multisampling), mat=lambert|standard (three.js's per-pixel lit
+// materials instead of the per-triangle light below), pdb=1 (preserveDrawingBuffer), wire=0 (no
+// triangle edges; w toggles them), grid=0 (no floor grid), hud=0 (no text updates), empty=1 (draw
+// nothing but the clear: the ceiling of the canvas itself), nogl=1 (no WebGL canvas: the ceiling
+// of the page), sync=1 (one pixel read back after each draw, so renderMs includes the raster).
 // window.conica exposes the page's state and window.conica.perf its timings (tests read them).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -391,7 +393,8 @@ function updateHud(now) {
     `tick ${state.tick}   t ${fmt(state.time, 3)} s`,
     `nodes ${state.numNodes}   triangles ${state.numTriangles}`,
     `frames ${state.framesReceived}  shown ${state.framesApplied}  dropped ${state.framesDropped}`,
-    `display ${fmt(state.fps, 0)} fps   apply ${fmt(state.applyMs, 2)} ms   render() ${fmt(state.renderMs, 1)} ms`,
+    `display ${fmt(state.fps, 0)} fps   apply ${fmt(state.applyMs, 2)} ms   `
+      + `render() ${fmt(state.renderMs, 1)} ms`,
     `frame age ${fmt(state.frameAgeMs, 0)} ms`,
     `max displacement ${fmt(state.maxDisplacement * 1e3, 3)} mm`,
   ];

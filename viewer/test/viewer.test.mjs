@@ -113,16 +113,19 @@ async function main() {
     // size. A queue anywhere on the way would instead grow the age with every frame the page
     // cannot draw (seconds within this press for a large body; measured in docs/viewer.md).
     const f = (v) => v.toFixed(0);
-    log(`during the press: ${perf.displayFps.toFixed(1)} fps drawn, ${perf.publishedPerS.toFixed(1)} frames/s `
-      + `from the server, ${perf.receivedPerS.toFixed(1)}/s received, ${perf.droppedPerS.toFixed(1)}/s dropped by the page; display interval p50/p95 `
+    log(`during the press: ${perf.displayFps.toFixed(1)} fps drawn, `
+      + `${perf.publishedPerS.toFixed(1)} frames/s from the server, ${perf.receivedPerS.toFixed(1)}/s received, `
+      + `${perf.droppedPerS.toFixed(1)}/s dropped by the page; display interval p50/p95 `
       + `${f(perf.intervalMs.p50)}/${f(perf.intervalMs.p95)} ms, apply p50 ${perf.applyMs.p50.toFixed(2)} ms, `
       + `frame age p50/p95/max ${f(perf.ageMs.p50)}/${f(perf.ageMs.p95)}/${f(perf.ageMs.max)} ms `
       + `(${perf.ageMs.n} frames)`);
     const bound = 4 * perf.intervalMs.p95 + 250;
     check(perf.ageMs.n >= 3 && perf.ageMs.p95 <= bound,
       `frame age bounded: p95 ${f(perf.ageMs.p95)} ms <= 4 x display interval p95 + 250 ms = ${f(bound)} ms`);
-    log(`meshes ${s2.meshes}, ${s2.numNodes} nodes, peak ${(s2.peakDisplacement * 1e3).toFixed(3)} mm, now ${(s2.maxDisplacement * 1e3).toFixed(3)} mm; frames received ${s2.framesReceived}, shown ${s2.framesApplied}, dropped ${s2.framesDropped}, `
-      + `apply ${s2.applyMs.toFixed(2)} ms, display ${s2.fps.toFixed(0)} fps`);
+    log(`meshes ${s2.meshes}, ${s2.numNodes} nodes, peak ${(s2.peakDisplacement * 1e3).toFixed(3)} mm, `
+      + `now ${(s2.maxDisplacement * 1e3).toFixed(3)} mm; frames received ${s2.framesReceived}, `
+      + `shown ${s2.framesApplied}, dropped ${s2.framesDropped}, apply ${s2.applyMs.toFixed(2)} ms, `
+      + `display ${s2.fps.toFixed(0)} fps`);
     check(errors.length === 0, `no page errors${errors.length ? ': ' + errors.join(' | ') : ''}`);
   } finally {
     await browser.close();
