@@ -103,14 +103,16 @@ void BM_ImplicitBudget(benchmark::State& state) {
     err = std::max(err, (sc.x[i] - sr.x[i]).norm());
     disp = std::max(disp, (sr.x[i] - mr.rest[i]).norm());
   }
+  // Both errors at step 200, before the timing loop moves the state on.
+  const double force_err =
+      (sc.probes[0].force - sr.probes[0].force).norm() / sr.probes[0].force.norm();
   Workspace ws(mc);
   for (auto _ : state) {
     step(mc, sc, ws);
     benchmark::DoNotOptimize(sc.x.data());
   }
   state.counters["rel_error"] = err / disp;
-  state.counters["force_rel_error"] =
-      (sc.probes[0].force - sr.probes[0].force).norm() / sr.probes[0].force.norm();
+  state.counters["force_rel_error"] = force_err;
 }
 
 BENCHMARK(BM_Step)->Apply(Args)->Unit(benchmark::kMicrosecond);
