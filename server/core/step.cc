@@ -277,6 +277,42 @@ void refresh_directions(const Model& m, Workspace& ws) {
   ws.directions_kept = true;
 }
 
+// Geometry, loads and forces (summed into ws.fx, fy, fz) of one chunk of springs in runs, with
+// force scales a (per spring); values kept per spring or only in the chunk buffers.
+void chunk_forces(const Model& m, const State& s, Workspace& ws, const Workspace::Chunk& c,
+                  bool keep, const double* __restrict a, std::int64_t* slack) {
+  const SpringValues v = keep ? values_at(ws, c.k0)
+                              : SpringValues{ws.chunk_ux.data(),     ws.chunk_uy.data(),
+                                             ws.chunk_uz.data(),     ws.chunk_length.data(),
+                                             ws.chunk_deflection.data(), ws.chunk_load.data(),
+                                             ws.chunk_tangent.data()};
+  for (int q = c.first_run; q < c.last_run; ++q) {
+    const Workspace::Run& r = ws.runs[q];
+    const int t = r.k - c.k0;
+    run_vectors(r.n, ws.px.data() + r.i, ws.py.data() + r.i, ws.pz.data() + r.i,
+                ws.px.data() + r.j, ws.py.data() + r.j, ws.pz.data() + r.j, v.ux + t, v.uy + t,
+                v.uz + t);
+  }
+  *slack = std::min(*slack, normalise_chunk(c.k1 - c.k0, m.rest_length.data() + c.k0,
+                                          m.deflection_scale.data() + c.k0,
+                                          ws.min_length.data() + c.k0, v.ux, v.uy, v.uz,
+                                          v.length, v.deflection));
+  group_loads(m, s, m.groups[c.group], c.k0, c.k1, v);
+  for (int q = c.first_run; q < c.last_run; ++q) {
+    const Workspace::Run& r = ws.runs[q];
+    const int t = r.k - c.k0;
+    if (r.j - r.i >= r.n) {
+      scatter_run_pair(r.n, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t,
+                       ws.fx.data() + r.i, ws.fy.data() + r.i, ws.fz.data() + r.i,
+                       ws.fx.data() + r.j, ws.fy.data() + r.j, ws.fz.data() + r.j);
+      continue;
+    }
+    for (const auto& [node, sign] : {std::pair{r.i, -1.0}, std::pair{r.j, 1.0}})
+      scatter_run(r.n, sign, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t,
+                  ws.fx.data() + node, ws.fy.data() + node, ws.fz.data() + node);
+  }
+}
+
 // Geometry and loads of every spring, and their forces summed into ws.force (which holds the
 // node terms already). Springs in runs go chunk by chunk (geometry, law, scatter), so a chunk's
 // per-spring values are reused from L1 rather than streamed through memory three times.
@@ -317,38 +353,7 @@ void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep) {
   std::fill(ws.fy.begin(), ws.fy.end(), 0.0);
   std::fill(ws.fz.begin(), ws.fz.end(), 0.0);
   std::int64_t slack = kNoRoom;
-  for (const Workspace::Chunk& c : ws.chunks) {
-    const SpringValues v = keep ? values_at(ws, c.k0)
-                                : SpringValues{ws.chunk_ux.data(),     ws.chunk_uy.data(),
-                                               ws.chunk_uz.data(),     ws.chunk_length.data(),
-                                               ws.chunk_deflection.data(), ws.chunk_load.data(),
-                                               ws.chunk_tangent.data()};
-    for (int q = c.first_run; q < c.last_run; ++q) {
-      const Workspace::Run& r = ws.runs[q];
-      const int t = r.k - c.k0;
-      run_vectors(r.n, ws.px.data() + r.i, ws.py.data() + r.i, ws.pz.data() + r.i,
-                  ws.px.data() + r.j, ws.py.data() + r.j, ws.pz.data() + r.j, v.ux + t, v.uy + t,
-                  v.uz + t);
-    }
-    slack = std::min(slack, normalise_chunk(c.k1 - c.k0, m.rest_length.data() + c.k0,
-                                            m.deflection_scale.data() + c.k0,
-                                            ws.min_length.data() + c.k0, v.ux, v.uy, v.uz,
-                                            v.length, v.deflection));
-    group_loads(m, s, m.groups[c.group], c.k0, c.k1, v);
-    for (int q = c.first_run; q < c.last_run; ++q) {
-      const Workspace::Run& r = ws.runs[q];
-      const int t = r.k - c.k0;
-      if (r.j - r.i >= r.n) {
-        scatter_run_pair(r.n, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t,
-                         ws.fx.data() + r.i, ws.fy.data() + r.i, ws.fz.data() + r.i,
-                         ws.fx.data() + r.j, ws.fy.data() + r.j, ws.fz.data() + r.j);
-        continue;
-      }
-      for (const auto& [node, sign] : {std::pair{r.i, -1.0}, std::pair{r.j, 1.0}})
-        scatter_run(r.n, sign, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t,
-                    ws.fx.data() + node, ws.fy.data() + node, ws.fz.data() + node);
-    }
-  }
+  for (const Workspace::Chunk& c : ws.chunks) chunk_forces(m, s, ws, c, keep, a, &slack);
   ws.slack = room_of(slack);
   node_forces(nn, m.mass.data(), s.v.front().data(), ws.fx.data(), ws.fy.data(), ws.fz.data(),
               m.options.gravity.data(), m.options.mass_damping, ws.force.front().data());
@@ -407,9 +412,29 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian)
 void forces_active(const Model& m, State& s, Workspace& ws) {
   const int nn = m.num_nodes();
   const double mu = m.options.mass_damping;
-  for (int i = 0; i < nn; ++i)
-    ws.force[i] = ws.awake[i] ? Vec3(m.mass[i] * (m.options.gravity - mu * s.v[i])) : Vec3::Zero();
-  for (int q = 0; q < ws.num_active; ++q) {
+  // A large region goes chunk by chunk (chunks with an awake spring, whole; springs with both ends
+  // asleep scaled to zero); a small one spring by spring from its list, since its springs are
+  // spread over many chunks and the per-node passes of the chunk path cost more than they save.
+  const bool chunked = !ws.runs.empty() && 8 * ws.num_active > m.num_springs();
+  if (chunked) {
+    copy_positions(s.x, ws);
+    std::fill(ws.fx.begin(), ws.fx.end(), 0.0);
+    std::fill(ws.fy.begin(), ws.fy.end(), 0.0);
+    std::fill(ws.fz.begin(), ws.fz.end(), 0.0);
+    std::int64_t slack = kNoRoom;
+    for (size_t c = 0; c < ws.chunks.size(); ++c)
+      if (ws.chunk_awake[c])
+        chunk_forces(m, s, ws, ws.chunks[c], true, ws.active_scale.data(), &slack);
+    for (int i = 0; i < nn; ++i) {
+      const Vec3 f(ws.fx[i], ws.fy[i], ws.fz[i]);
+      ws.force[i] = ws.awake[i] ? Vec3(m.mass[i] * (m.options.gravity - mu * s.v[i]) + f) : f;
+    }
+  } else {
+    for (int i = 0; i < nn; ++i)
+      ws.force[i] =
+          ws.awake[i] ? Vec3(m.mass[i] * (m.options.gravity - mu * s.v[i])) : Vec3::Zero();
+  }
+  for (int q = 0; q < ws.num_active && !chunked; ++q) {
     const int k = ws.active[q];
     const int i = m.spring_i[k], j = m.spring_j[k];
     const Vec3 u = s.x[j] - s.x[i];
@@ -763,6 +788,8 @@ Workspace::Workspace(const Model& m) {
     runs.clear();
     chunks.clear();
   }
+  chunk_awake.assign(chunks.size(), 1);
+  active_scale = m.force_scale;
   diag_inv.assign(nn, Mat3::Zero());
   contact_n.assign(nn, Vec3::Zero());
   for (auto* v : {&x0, &v0, &rhs, &r, &z, &p, &ap, &dx, &good_x, &good_v}) v->assign(nn, Vec3::Zero());
@@ -941,9 +968,17 @@ void update_region(const Model& m, State& s, Workspace& ws) {
   s.counters.awake_nodes = awake_count;
   if (!changed) return;
   int n = 0;
-  for (int k = 0; k < m.num_springs(); ++k)
-    if (ws.awake[m.spring_i[k]] || ws.awake[m.spring_j[k]]) ws.active[n++] = k;
+  for (int k = 0; k < m.num_springs(); ++k) {
+    const bool on = ws.awake[m.spring_i[k]] || ws.awake[m.spring_j[k]];
+    if (on) ws.active[n++] = k;
+    ws.active_scale[k] = on ? m.force_scale[k] : 0.0;
+  }
   ws.num_active = n;
+  for (size_t c = 0; c < ws.chunks.size(); ++c) {
+    bool any = false;
+    for (int k = ws.chunks[c].k0; k < ws.chunks[c].k1 && !any; ++k) any = ws.active_scale[k] != 0;
+    ws.chunk_awake[c] = any;
+  }
 }
 
 StepStatus step(const Model& m, State& s, Workspace& ws) {

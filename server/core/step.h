@@ -28,7 +28,8 @@
 // eps. Nodes within max(R, 2 probe radii) of an active probe are awake; they fall asleep (velocity
 // zeroed, position kept) beyond 1.25 R, and a sleeping node wakes when the springs of the awake
 // region pull on it with more than k_node eps (k_node: mean axial stiffness per node). Only springs
-// with an awake end are evaluated. E is the network's isotropic estimate sum(k l0^2) / (6 V),
+// with an awake end act (lattices: only chunks holding one are evaluated, whole, with the other
+// springs' forces scaled to zero). E is the network's isotropic estimate sum(k l0^2) / (6 V),
 // nu = 1/4.
 //
 // Solid height: the law's stiffness cap (ConicalLaw) keeps k_t finite, and a hard stop projects
@@ -86,6 +87,8 @@ struct Workspace {
   std::vector<std::uint8_t> awake, wake;          // (num_nodes)
   std::vector<int> active;                        // (num_springs) springs with an awake end
   std::vector<int> spring_group;                  // (num_springs) group of each spring
+  std::vector<double> active_scale;               // (num_springs) force_scale, 0 if both ends sleep
+  std::vector<std::uint8_t> chunk_awake;          // (chunks) a spring of the chunk has an awake end
   int num_active = -1;                            // -1: region not built yet
   double modulus = 0;                             // Pa, network estimate
   double node_stiffness = 0;                      // N/m, mean axial stiffness per node
