@@ -39,9 +39,11 @@ for t in "${TARGETS[@]}"; do
   [[ -d "tests/data/fuzz-regressions/$t" ]] && dirs+=("tests/data/fuzz-regressions/$t")
   echo "fuzz: $t for ${SECONDS_EACH} s"
   log="$BUILD_DIR/artifacts/$t.log"
-  # -timeout: one input longer than 10 s is a hang; -rss_limit_mb: more than 2 GiB is a finding.
+  # -timeout: one input longer than 60 s is a hang (the largest body a scene may generate,
+  # 100,000 lattice cells, takes about 25 s to build under this instrumentation: 296,000 cells
+  # took 68 s); -rss_limit_mb: more than 2 GiB is a finding.
   if ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
-     "$BUILD_DIR/bin/conica-fuzz-$t" -max_total_time="$SECONDS_EACH" -timeout=10 \
+     "$BUILD_DIR/bin/conica-fuzz-$t" -max_total_time="$SECONDS_EACH" -timeout=60 \
        -rss_limit_mb=2048 -max_len="${MAXLEN[$t]}" -print_final_stats=1 \
        -artifact_prefix="$BUILD_DIR/artifacts/$t-" "${dirs[@]}" >"$log" 2>&1; then
     grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb)|INITED|DONE" "$log" | tr '\n' ' '

@@ -15,6 +15,11 @@
 namespace conica::io {
 namespace {
 
+// Generated bodies (lattice, cylinder) are bounded in total, not only per axis: 400^3 cells would
+// need about 100 GB. 100,000 cells (about 1.4 million springs) is five times the 20k-node block.
+constexpr long kMaxGeneratedCells = 100000;
+
+
 namespace pb = google::protobuf;
 
 // Collects the text parser's first error with its position.
@@ -105,6 +110,10 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
       if (l.cells(k) < 1 || l.cells(k) > 400)
         return Error{loc.at("lattice") + "lattice cells must be in 1..400 (got " +
                      std::to_string(l.cells(k)) + ")"};
+    const long cells = static_cast<long>(l.cells(0)) * l.cells(1) * l.cells(2);
+    if (cells > kMaxGeneratedCells)
+      return Error{loc.at("lattice") + "lattice of " + std::to_string(cells) +
+                   " cells is over the limit of " + std::to_string(kMaxGeneratedCells)};
     const Vec3 size = vec(l.size());
     if (!(size.minCoeff() > 0) || !size.allFinite())
       return Error{loc.at("lattice") + "lattice size must be > 0 m on every axis"};
@@ -116,6 +125,10 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
       return Error{loc.at("cylinder") + "cylinder radius and height must be > 0 m"};
     if (c.cells_across() < 1 || c.cells_across() > 400 || c.cells_high() < 1 || c.cells_high() > 400)
       return Error{loc.at("cylinder") + "cylinder cells_across and cells_high must be in 1..400"};
+    const long cells = static_cast<long>(c.cells_across()) * c.cells_across() * c.cells_high();
+    if (cells > kMaxGeneratedCells)
+      return Error{loc.at("cylinder") + "cylinder of " + std::to_string(cells) +
+                   " cells is over the limit of " + std::to_string(kMaxGeneratedCells)};
     b.mesh = make_cylinder_lattice(c.radius(), c.height(), c.cells_across(), c.cells_high());
     for (auto& n : b.mesh.nodes) n += vec(c.origin());
   } else if (scene.has_mesh()) {

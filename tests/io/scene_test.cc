@@ -85,6 +85,13 @@ TEST(SceneTest, WrongScenesAreRefusedWithLineAndReason) {
   // A fixed selector that matches nothing.
   const std::string fixed = with("offset: 0", "offset: 5");
   EXPECT_NE(fixed.find("s.pbtxt:6:1: fixed selector 0 matches no node"), std::string::npos) << fixed;
+  // A lattice within the per-axis bound but too large in total (400^3 would need ~100 GB).
+  const std::string huge = with("cells: [2, 2, 1]", "cells: [400, 400, 400]");
+  EXPECT_NE(huge.find("s.pbtxt:3:1: lattice of 64000000 cells is over the limit of 100000"),
+            std::string::npos)
+      << huge;
+  EXPECT_NE(with("cells: [2, 2, 1]", "cells: [47, 47, 46]").find("over the limit"),
+            std::string::npos);
   // Wrong type and garbage.
   EXPECT_NE(with("density: 1000", "density: \"heavy\"").find("s.pbtxt:4:"), std::string::npos);
   EXPECT_NE(ErrorOf("\x01\x02 garbage {{{").find("s.pbtxt:"), std::string::npos);
