@@ -40,7 +40,7 @@ for t in "${TARGETS[@]}"; do
   echo "fuzz: $t for ${SECONDS_EACH} s"
   log="$BUILD_DIR/artifacts/$t.log"
   # -timeout: one input longer than 60 s is a hang (the largest body a scene may generate,
-  # 100,000 lattice cells, takes about 25 s to build under this instrumentation: 296,000 cells
+  # 100,000 lattice cells, takes about 20 s to build under this instrumentation: 296,000 cells
   # took 68 s); -rss_limit_mb: more than 2 GiB is a finding.
   if ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
      "$BUILD_DIR/bin/conica-fuzz-$t" -max_total_time="$SECONDS_EACH" -timeout=60 \
