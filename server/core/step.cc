@@ -15,40 +15,29 @@ namespace {
 
 double h_of(const Model& m) { return m.options.dt / m.options.substeps; }
 
-// Geometry of every spring as a vectorisable pass over plain arrays (kept out of line so the
-// compiler sees raw doubles, not Eigen storage, and emits gathers): positions (num_nodes x 3),
-// results structure-of-arrays. Returns the smallest length - min_length.
-// The smallest room (length - min_length) is reduced as the int64 bit patterns of the doubles:
-// for rooms >= 0 their order is the doubles' order, any negative room gives a negative pattern
-// (that is all the hard-stop test needs: "none may be short"), and an integer min vectorises where
-// a floating-point one would need -ffinite-math-only. NaN patterns are large: ignored here, caught
-// by the guard after the step.
+// The smallest room (length - min_length) of a set of springs is reduced as the int64 bit
+// patterns of the doubles: for rooms >= 0 their order is the doubles' order, any negative room
+// gives a negative pattern (that is all the hard-stop test needs: "none may be short"), and an
+// integer min vectorises where a floating-point one would need -ffinite-math-only. NaN patterns
+// are large: ignored here, caught by the guard after the step.
 constexpr std::int64_t kNoRoom = std::numeric_limits<std::int64_t>::max();
 double room_of(std::int64_t bits) {
   return bits == kNoRoom ? std::numeric_limits<double>::infinity() : std::bit_cast<double>(bits);
 }
 
-[[gnu::noinline]] std::int64_t geometry_kernel(int ns, const double* __restrict X,
-                                         const int* __restrict si, const int* __restrict sj,
-                                         const double* __restrict l0, const double* __restrict b,
-                                         const double* __restrict lmin, double* __restrict ux,
-                                         double* __restrict uy, double* __restrict uz,
-                                         double* __restrict len, double* __restrict defl) {
-  std::int64_t slack = kNoRoom;
+// End-to-end vectors of every spring gathered from node-major positions X (num_nodes x 3) into
+// (dx, dy, dz), for springs not in runs; normalise_chunk then turns them into geometry. Kept out
+// of line so the compiler sees raw doubles, not Eigen storage, and emits gathers.
+[[gnu::noinline]] void gather_vectors(int ns, const double* __restrict X,
+                                      const int* __restrict si, const int* __restrict sj,
+                                      double* __restrict dx, double* __restrict dy,
+                                      double* __restrict dz) {
   for (int k = 0; k < ns; ++k) {
     const int i = 3 * si[k], j = 3 * sj[k];
-    const double dx = X[j] - X[i], dy = X[j + 1] - X[i + 1], dz = X[j + 2] - X[i + 2];
-    const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
-    // A zero-length spring gets a zero direction and so no force: bounded, never NaN.
-    const double inv = 1.0 / std::max(l, 1e-300);
-    ux[k] = dx * inv;
-    uy[k] = dy * inv;
-    uz[k] = dz * inv;
-    len[k] = l;
-    defl[k] = b[k] * (l0[k] - l);
-    slack = std::min(slack, std::bit_cast<std::int64_t>(l - lmin[k]));
+    dx[k] = X[j] - X[i];
+    dy[k] = X[j + 1] - X[i + 1];
+    dz[k] = X[j + 2] - X[i + 2];
   }
-  return slack;
 }
 
 // Geometry of springs in runs, in two passes per chunk: each run's end-to-end vectors are copied
@@ -79,6 +68,7 @@ double room_of(std::int64_t bits) {
   for (int t = 0; t < n; ++t) {
     const double dx = ux[t], dy = uy[t], dz = uz[t];
     const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+    // A zero-length spring gets a zero direction and so no force: bounded, never NaN.
     const double inv = 1.0 / std::max(l, 1e-300);
     ux[t] = dx * inv;
     uy[t] = dy * inv;
@@ -322,16 +312,16 @@ void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep) {
   const double* __restrict a = m.force_scale.data();
   ws.directions_kept = true;
   if (ws.runs.empty()) {
-    ws.slack = room_of(geometry_kernel(m.num_springs(), s.x.front().data(), m.spring_i.data(),
-                                       m.spring_j.data(), m.rest_length.data(),
-                                       m.deflection_scale.data(), ws.min_length.data(),
-                                       ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.length.data(),
-                                       ws.deflection.data()));
+    const int ns = m.num_springs();
+    gather_vectors(ns, s.x.front().data(), m.spring_i.data(), m.spring_j.data(), ws.ux.data(),
+                   ws.uy.data(), ws.uz.data());
+    ws.slack = room_of(normalise_chunk(ns, m.rest_length.data(), m.deflection_scale.data(),
+                                       ws.min_length.data(), ws.ux.data(), ws.uy.data(),
+                                       ws.uz.data(), ws.length.data(), ws.deflection.data()));
     for (const SpringGroup& g : m.groups)
       group_loads(m, s, g, g.begin, g.end, values_at(ws, g.begin));
     const double* __restrict load = ws.load.data();
     double* __restrict F = ws.force.front().data();
-    const int ns = m.num_springs();
     for (int k = 0; k < ns; ++k) {
       const double fk = a[k] * load[k];
       const double fx = fk * ws.ux[k], fy = fk * ws.uy[k], fz = fk * ws.uz[k];
