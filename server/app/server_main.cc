@@ -21,6 +21,7 @@
 
 #include "net/builtin_scenes.h"
 #include "net/curve.h"
+#include "net/io_threads.h"
 #include "net/server.h"
 
 #if defined(CONICA_HAVE_SCENE)
@@ -28,18 +29,6 @@
 #endif
 
 namespace {
-
-// Can a thread of this process run SCHED_FIFO at `priority`? Tried on a scratch thread, because
-// libzmq aborts when it cannot apply a context's thread scheduling options.
-bool fifo_allowed(int priority) {
-  bool ok = false;
-  std::thread([&] {
-    sched_param sp{};
-    sp.sched_priority = priority;
-    ok = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
-  }).join();
-  return ok;
-}
 
 std::string load_scene_file(const std::string& path, conica::BodySpec* spec) {
 #if defined(CONICA_HAVE_SCENE)
@@ -155,9 +144,7 @@ int main(int argc, char** argv) {
   zmq::context_t context(io_threads);
   if (realtime_io) {  // independent of --no-realtime (the loop thread's own policy)
     const int priority = std::min(80, sched_get_priority_max(SCHED_FIFO));
-    if (fifo_allowed(priority)) {
-      context.set(zmq::ctxopt::thread_sched_policy, SCHED_FIFO);
-      context.set(zmq::ctxopt::thread_priority, priority);
+    if (conica::net::set_io_threads_fifo(context, priority)) {
       spdlog::info("ZeroMQ I/O threads run SCHED_FIFO priority {}", priority);
     } else {
       spdlog::info("SCHED_FIFO refused for the ZeroMQ I/O threads; they run at normal priority");

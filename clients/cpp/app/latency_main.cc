@@ -27,6 +27,7 @@
 #include <CLI/CLI.hpp>
 
 #include "client/connection.h"
+#include "net/io_threads.h"
 #include "common/latency_stats.h"
 
 using namespace conica::client;
@@ -87,17 +88,8 @@ int main(int argc, char** argv) {
 
   zmq::context_t context(io_threads);
   if (realtime) {
-    // Tried on a scratch thread first: libzmq aborts when it cannot apply the I/O threads' policy.
     constexpr int kPriority = 70;
-    bool allowed = false;
-    std::thread([&] {
-      sched_param sp{};
-      sp.sched_priority = kPriority;
-      allowed = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
-    }).join();
-    if (allowed) {
-      context.set(zmq::ctxopt::thread_sched_policy, SCHED_FIFO);
-      context.set(zmq::ctxopt::thread_priority, kPriority);
+    if (conica::net::set_io_threads_fifo(context, kPriority)) {
       sched_param sp{};
       sp.sched_priority = kPriority;
       pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
