@@ -13,15 +13,15 @@ import argparse
 import csv
 import io
 import os
-import re
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
+from server_process import ServerProcess  # noqa: E402
 
 SERVER = PROBE_PY = None
 TOP = 0.04               # m, top face of the built-in cube
@@ -32,39 +32,6 @@ RADIUS = 5e-3            # m, the cube's probe
 def run(cmd, timeout=60):
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
 
-
-class CurveServer:
-    def __init__(self, key, clients):
-        any_port = "tcp://127.0.0.1:*"
-        self.proc = subprocess.Popen(
-            [SERVER, "--builtin", "cube", "--probe-endpoint", any_port, "--state-endpoint", any_port,
-             "--control-endpoint", any_port, "--seconds", "120", "--no-realtime",
-             "--stats-seconds", "0", "--curve-server-key", key, "--curve-clients", clients],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        self.lines = []
-        found = threading.Event()
-        self.probe = None
-
-        def read():
-            pattern = re.compile(r"serving: probes (\S+), state (\S+), control (\S+) at")
-            for line in self.proc.stdout:
-                self.lines.append(line)
-                m = pattern.search(line)
-                if m and not found.is_set():
-                    self.probe = m.group(1)
-                    found.set()
-            found.set()
-
-        threading.Thread(target=read, daemon=True).start()
-        if not found.wait(30) or self.probe is None:
-            self.proc.kill()
-            raise RuntimeError("server did not start:\n" + "".join(self.lines))
-
-    def stop(self):
-        self.proc.send_signal(signal.SIGTERM)
-        return self.proc.wait(timeout=10)
-
-
 class ProbeCurveTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -73,7 +40,8 @@ class ProbeCurveTest(unittest.TestCase):
                         (os.path.join(cls.dir, "other"), "mallory")):
             r = run([SERVER, "--generate-keys", d, "--key-name", name])
             assert r.returncode == 0, r.stdout + r.stderr
-        cls.server = CurveServer(os.path.join(cls.dir, "server.key"), os.path.join(cls.dir, "clients"))
+        cls.server = ServerProcess(SERVER, ("--curve-server-key", os.path.join(cls.dir, "server.key"),
+                                             "--curve-clients", os.path.join(cls.dir, "clients")))
 
     @classmethod
     def tearDownClass(cls):
@@ -85,7 +53,7 @@ class ProbeCurveTest(unittest.TestCase):
         return os.path.join(self.dir, name)
 
     def probe(self, key, server_pub="server.pub", extra=()):
-        return run(["/usr/bin/python3", PROBE_PY, "--endpoint", self.server.probe,
+        return run(["/usr/bin/python3", PROBE_PY, "--endpoint", self.server.endpoints[0],
                     "--at", f"{NODE_XY},{NODE_XY},{TOP + RADIUS}", "--depth", "0.002",
                     "--approach", "0.002", "--steps", "40", "--hold", "5",
                     "--curve-server-pub", self.path(server_pub), "--curve-key", self.path(key),

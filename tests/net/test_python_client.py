@@ -9,13 +9,12 @@ socket, then stops it with SIGTERM.
 """
 import argparse
 import os
-import re
-import signal
-import subprocess
 import sys
-import threading
 import time
 import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
+from server_process import ServerProcess  # noqa: E402
 
 import zmq
 from conica.v1 import messages_pb2 as pb
@@ -24,39 +23,6 @@ SERVER = None
 TOP = 0.04               # m, top face of the built-in cube
 NODE_XY = 3 * 0.04 / 7   # m, a lattice column under the probe
 RADIUS = 5e-3            # m, the cube's probe
-
-
-class ServerProcess:
-    def __init__(self, path):
-        any_port = "tcp://127.0.0.1:*"
-        self.proc = subprocess.Popen(
-            [path, "--builtin", "cube", "--probe-endpoint", any_port, "--state-endpoint", any_port,
-             "--control-endpoint", any_port, "--seconds", "120", "--no-realtime",
-             "--stats-seconds", "0"],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        self.lines = []
-        found = threading.Event()
-        self.endpoints = None
-
-        def read():
-            pattern = re.compile(r"serving: probes (\S+), state (\S+), control (\S+) at")
-            for line in self.proc.stdout:
-                self.lines.append(line)
-                m = pattern.search(line)
-                if m and not found.is_set():
-                    self.endpoints = m.groups()
-                    found.set()
-            found.set()
-
-        threading.Thread(target=read, daemon=True).start()
-        if not found.wait(30) or self.endpoints is None:
-            self.proc.kill()
-            raise RuntimeError("server did not start:\n" + "".join(self.lines))
-
-    def stop(self):
-        self.proc.send_signal(signal.SIGTERM)
-        return self.proc.wait(timeout=10)
-
 
 def probe_message(seq, z, x=NODE_XY, y=NODE_XY, probe_id=0, version=1):
     m = pb.ClientMessage(protocol_version=version)
