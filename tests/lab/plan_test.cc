@@ -120,6 +120,10 @@ LabRun Lab(const std::string& args) {
 class PlanCliTest : public ::testing::Test {
  protected:
   void SetUp() override {
+    // Files named after the test: CTest runs these tests as parallel processes.
+    const std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    data_ = testing::TempDir() + "plan_test_data_" + name + ".csv";
+    out_ = testing::TempDir() + "plan_test_solver_" + name + ".pbtxt";
     // The table, with a symplectic x1 row at the scene's resolution to calibrate against; the
     // paper cube (320 nodes) is nearest the 245-node rows.
     std::ofstream f(data_);
@@ -131,8 +135,7 @@ class PlanCliTest : public ::testing::Test {
     std::remove(out_.c_str());
   }
   const std::string scene_ = std::string(CONICA_SOURCE_DIR) + "/configs/paper-cube.pbtxt";
-  const std::string data_ = testing::TempDir() + "plan_test_data.csv";
-  const std::string out_ = testing::TempDir() + "plan_test_solver.pbtxt";
+  std::string data_, out_;
 };
 
 TEST_F(PlanCliTest, ChoosesAndWritesTheSolverBlock) {
