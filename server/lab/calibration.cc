@@ -2,6 +2,8 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -197,7 +199,117 @@ void solve_lm(RelativeResiduals res, int num_residuals, int iterations, bool cen
                " iterations)");
 }
 
+// Lawson-Hanson non-negative least squares: min |A x - b| subject to x >= 0.
+Eigen::VectorXd nnls(const Eigen::MatrixXd& A, const Eigen::VectorXd& b) {
+  const int m = static_cast<int>(A.cols());
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(m);
+  std::vector<char> passive(m, 0);
+  const double tol = 1e-12 * std::max(1.0, A.norm() * b.norm());
+  for (int outer = 0; outer < 3 * m; ++outer) {
+    const Eigen::VectorXd grad = A.transpose() * (b - A * x);
+    int t = -1;
+    for (int j = 0; j < m; ++j)
+      if (!passive[j] && grad[j] > tol && (t < 0 || grad[j] > grad[t])) t = j;
+    if (t < 0) break;
+    passive[t] = 1;
+    for (int inner = 0; inner < 3 * m; ++inner) {
+      std::vector<int> P;
+      for (int j = 0; j < m; ++j)
+        if (passive[j]) P.push_back(j);
+      Eigen::MatrixXd Ap(A.rows(), P.size());
+      for (size_t q = 0; q < P.size(); ++q) Ap.col(q) = A.col(P[q]);
+      const Eigen::VectorXd zp = Ap.colPivHouseholderQr().solve(b);
+      bool all_positive = true;
+      for (size_t q = 0; q < P.size(); ++q) all_positive &= zp[q] > 0;
+      if (all_positive) {
+        x.setZero();
+        for (size_t q = 0; q < P.size(); ++q) x[P[q]] = zp[q];
+        break;
+      }
+      double alpha = 1;
+      for (size_t q = 0; q < P.size(); ++q)
+        if (zp[q] <= 0) alpha = std::min(alpha, x[P[q]] / (x[P[q]] - zp[q]));
+      for (size_t q = 0; q < P.size(); ++q) {
+        x[P[q]] += alpha * (zp[q] - x[P[q]]);
+        if (x[P[q]] <= 1e-15) {
+          x[P[q]] = 0;
+          passive[P[q]] = 0;
+        }
+      }
+    }
+  }
+  return x;
+}
+
 }  // namespace
+
+ColumnFloor column_floor(const std::vector<double>& strain, const std::vector<double>& force,
+                         int first, double area, const ShapeBounds& B) {
+  ColumnFloor out;
+  const int n = static_cast<int>(strain.size());
+  if (n != static_cast<int>(force.size()) || n - first < 2 || strain.empty()) return out;
+  const double max_strain = strain.back();
+  const double smin = std::max(B.stroke_min, std::min(0.99 * B.stroke_max, 1.02 * max_strain));
+  // Basis: column stress per unit modulus, sigma(eps) = P(L0 eps) / L0^2 at E_c = 1 Pa.
+  const ConicalCard base{1e9, 1e-3, 2e-3, 8e-3, 10e-3, 3};
+  const int nt = 24, ns = 24;
+  std::vector<CardShape> shapes;
+  std::vector<std::vector<double>> cols;
+  for (int i = 0; i < nt; ++i)
+    for (int j = 0; j < ns; ++j) {
+      const CardShape sh{1.0, B.taper_min + (B.taper_max - B.taper_min) * i / (nt - 1),
+                         smin + (B.stroke_max - smin) * j / (ns - 1)};
+      const ConicalCard card = card_with_shape(base, sh);
+      if (!validate(card).empty()) continue;
+      const ConicalLaw law(card);
+      std::vector<double> c(n);
+      bool ok = true;
+      for (int k = 0; k < n && ok; ++k) {
+        const double delta = strain[k] * card.L0;
+        ok = delta < law.stroke();
+        c[k] = ok ? law.evaluate_exact(delta).force / (card.L0 * card.L0) * area : 0;
+      }
+      if (!ok) continue;
+      shapes.push_back(sh);
+      cols.push_back(std::move(c));
+    }
+  const int m = static_cast<int>(cols.size());
+  const int R = n - first;
+  if (m == 0) return out;
+  Eigen::MatrixXd A(R, m);
+  Eigen::VectorXd scale(m);
+  for (int j = 0; j < m; ++j) {
+    for (int k = 0; k < R; ++k) A(k, j) = cols[j][first + k] / force[first + k];
+    scale[j] = A.col(j).norm();
+    A.col(j) /= scale[j];
+  }
+  // Iteratively reweighted least squares for the L1 error: weights 1 / max(|r|, eps).
+  Eigen::VectorXd omega = Eigen::VectorXd::Ones(R), best_x;
+  double best = std::numeric_limits<double>::infinity();
+  for (int it = 0; it < 60; ++it) {
+    const Eigen::VectorXd sw = omega.cwiseSqrt();
+    const Eigen::VectorXd x = nnls(sw.asDiagonal() * A, sw);
+    const Eigen::VectorXd r = A * x - Eigen::VectorXd::Ones(R);
+    const double e = r.cwiseAbs().mean();
+    if (e < best) {
+      best = e;
+      best_x = x;
+    }
+    const double eps = std::max(1e-7, 1e-3 * e);
+    for (int k = 0; k < R; ++k) omega[k] = 1 / std::max(std::abs(r[k]), eps);
+  }
+  out.error = best;
+  out.force.assign(n, 0.0);
+  for (int j = 0; j < m; ++j) {
+    const double w = best_x[j] / scale[j];  // modulus, Pa
+    if (!(w > 0)) continue;
+    CardShape sh = shapes[j];
+    sh.modulus = w;
+    out.shapes.push_back(sh);
+    for (int k = 0; k < n; ++k) out.force[k] += w * cols[j][k];
+  }
+  return out;
+}
 
 bool parse_force_curve(std::string_view text, Curve* out, std::string* error) {
   out->clear();
@@ -449,6 +561,18 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
       r.error = "measured force <= 0 at " + fmt(r.grid[k] * 1e3) + " mm";
       return r;
     }
+  if (o.column_floor) {
+    std::vector<double> strain(n);
+    for (int k = 0; k < n; ++k) strain[k] = r.grid[k] / geo.height;
+    r.floor = column_floor(strain, r.data, r.first, geo.area, o.bounds);
+    std::string laws;
+    for (const CardShape& sh : r.floor.shapes)
+      laws += (laws.empty() ? "" : "; ") + std::string("E_c ") + fmt(sh.modulus, 4) +
+              " Pa, taper " + fmt(sh.taper, 3) + ", stroke " + fmt(sh.stroke, 3);
+    say("column floor: the best sum of conical laws in parallel along the load (none past its "
+        "stroke) has average relative error " + fmt(100 * r.floor.error, 4) + " % (" +
+        std::to_string(r.floor.shapes.size()) + " laws: " + laws + ")");
+  }
   say("data: " + std::to_string(curves.size()) + " curve(s) averaged on " + std::to_string(n) +
       " points up to " + fmt(r.grid.back() * 1e3) + " mm (strain " + fmt(o.max_strain) +
       "), error over points from " + fmt(r.grid[r.first] * 1e3) + " mm (strain >= " +
@@ -639,11 +763,62 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   }
   set_result(best_shapes);
   r.surrogate_error_before_refine = r.surrogate_error;
+  r.full_error_before_refine = best_full;
+  const Layout LK{K, K > 1 && o.tie_taper, B, smin, K > 1 && o.isotropic};
+
+  // 4. Output space mapping: the full body differs from the cell surrogate (boundary cells,
+  // the cylinder's distorted cells), by a ratio that depends on the strain and only weakly on
+  // the cards. Refit the surrogate times the last full-body / surrogate ratio, rerun the full
+  // body there, repeat. One full compression per step.
+  if (o.space_mapping > 0 && std::isfinite(best_full)) {
+    std::vector<CardShape> xk = best_shapes;
+    std::vector<double> fk = best_curve;
+    int worse = 0;
+    for (int step = 1; step <= o.space_mapping && worse < 2; ++step) {
+      const std::vector<double> sk = surrogate(cards_of(base, xk));
+      std::vector<double> ratio(n, 1.0);
+      bool ok = true;
+      for (int k = r.first; k < n; ++k) {
+        ratio[k] = fk[k] / sk[k];
+        ok &= std::isfinite(ratio[k]) && ratio[k] > 0;
+      }
+      if (!ok) {
+        say("space mapping step " + std::to_string(step) +
+            ": full body and surrogate not comparable (collapse or NaN), stopped");
+        break;
+      }
+      RelativeResiduals mres = res;
+      mres.layout = LK;
+      mres.model = [&surrogate, ratio](const std::vector<ConicalCard>& cards) {
+        std::vector<double> f = surrogate(cards);
+        for (size_t k = 0; k < f.size(); ++k) f[k] *= ratio[k];
+        return f;
+      };
+      std::vector<double> x = encode(xk, LK);
+      solve_lm(mres, R, o.max_iterations, true, 1e-6, {}, "", x.data());
+      xk = decode(x.data(), LK);
+      fk = full(cards_of(base, xk));
+      const double e = average_relative_error(fk, r.data, r.first);
+      say("space mapping step " + std::to_string(step) + ": full body " + fmt(100 * e, 4) +
+          " % at " + shapes_text(xk));
+      if (e < best_full) {
+        best_full = e;
+        best_shapes = xk;
+        best_curve = fk;
+        worse = 0;
+      } else {
+        ++worse;
+      }
+    }
+    r.full_error_after_mapping = best_full;
+  }
+  set_result(best_shapes);
+  r.surrogate_error_before_refine = r.surrogate_error;
   r.full = best_curve;
-  r.full_error = r.full_error_before_refine = best_full;
+  r.full_error = best_full;
   if (o.full_iterations == 0) return r;
   RelativeResiduals fres = res;
-  fres.layout = Layout{K, K > 1 && o.tie_taper, B, smin, K > 1 && o.isotropic};
+  fres.layout = LK;
   fres.model = full;
   std::vector<double> x = encode(best_shapes, fres.layout);
   solve_lm(fres, R, o.full_iterations, false, 1e-4, o, "full-body LM", x.data());

@@ -83,6 +83,25 @@ struct LatticeModuli {
 };
 LatticeModuli lattice_moduli(const std::vector<SpringGroupSpec>& groups);
 
+// The column floor: the smallest average relative error (over grid points first..) that any
+// sum of conical laws in parallel can reach on a force curve, every law acting as a column along
+// the load (spring strain = body strain, no lateral coupling) and none past its stroke in the
+// fitted range (stroke >= 1.02 max strain). A conical law is linear for at least the first
+// quarter of its stroke, so every such sum is linear up to a quarter of the largest strain:
+// a curve that stiffens from the start cannot be followed there. Computed over a basis of
+// tapers x strokes (the bounds' ranges) with non-negative moduli, the L1 error minimised by
+// iteratively reweighted non-negative least squares (Lawson-Hanson).
+struct ColumnFloor {
+  double error = -1;              // fraction; -1: not computed
+  std::vector<CardShape> shapes;  // the laws with a nonzero modulus (modulus: share in Pa of
+                                  // column stress per unit strain)
+  std::vector<double> force;      // the best sum on the grid, N
+};
+// `strain`: engineering strains of the grid (ascending); `force`: measured force there (N);
+// `area`: the body's cross-section (m^2), only to report the moduli in Pa.
+ColumnFloor column_floor(const std::vector<double>& strain, const std::vector<double>& force,
+                         int first, double area, const ShapeBounds& bounds = {});
+
 struct FitOptions {
   int cards = 1;             // conical cards, one per family part (see above), 1..3
   bool tie_taper = false;    // the cards share one taper
@@ -97,6 +116,13 @@ struct FitOptions {
   int max_iterations = 100;  // Levenberg-Marquardt on the surrogate
   int full_iterations = 3;   // Levenberg-Marquardt through the full body (0: verify only;
                              // < 0: no full-body run at all)
+  int space_mapping = 0;     // output space mapping steps after the full-body check: the
+                             // surrogate times the measured full-body / surrogate force ratio
+                             // (per grid point) is refitted, and the full body rerun at the new
+                             // optimum; one full compression per step (0: none). On the
+                             // phantom cylinder it does not converge: the full body's late
+                             // collapse makes the ratio depend strongly on the cards.
+  bool column_floor = true;  // compute the column floor (see above) of the data
   double rate = 500e-3 / 60; // m/s, plate speed of the full-body compression
   ShapeBounds bounds;
   std::function<void(const std::string&)> progress;  // one line per stage / iteration
@@ -119,6 +145,8 @@ struct FitResult {
   double full_error = -1;         // of the full body, fraction (-1: not run)
   double surrogate_error_before_refine = -1;  // surrogate error at the surrogate optimum
   double full_error_before_refine = -1;       // full-body error at the surrogate optimum
+  double full_error_after_mapping = -1;       // full-body error after space mapping (-1: none)
+  ColumnFloor floor;              // of the data (options.column_floor)
   int evaluations = 0;            // surrogate curves computed
   int full_evaluations = 0;       // full-body compressions run
   std::string error;              // why the fit could not run (empty: it ran)

@@ -22,7 +22,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
     std::vector<std::string> data;
     std::string scene, out, curves, plot;
     double max_strain = 0.5, skip_strain = 0.03, rate_mm_per_min = 500;
-    int points = 50, full_iterations = 3, cards = 1, verify = 3;
+    int points = 50, full_iterations = 3, cards = 1, verify = 3, space_mapping = 0;
     bool tie_taper = false, free_moduli = false;
   };
   auto o = std::make_shared<Opts>();
@@ -49,6 +49,10 @@ void register_calibrate(CLI::App& app, Runner* run) {
                 "isotropy condition 4 E_edge = E_face + 8/9 E_body)");
   cmd->add_option("--verify-candidates", o->verify,
                   "with several cards: surrogate optima checked in the full body")
+      ->capture_default_str();
+  cmd->add_option("--space-mapping", o->space_mapping,
+                  "output space mapping steps after the full-body check (one full compression "
+                  "each; 0: none)")
       ->capture_default_str();
   cmd->add_option("--rate-mm-per-min", o->rate_mm_per_min, "plate speed of the full-body runs")
       ->capture_default_str();
@@ -90,6 +94,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
       fo.tie_taper = o->tie_taper;
       fo.isotropic = !o->free_moduli;
       fo.verify_candidates = o->verify;
+      fo.space_mapping = o->space_mapping;
       fo.rate = o->rate_mm_per_min * 1e-3 / 60;
       fo.progress = [](const std::string& s) {
         std::printf("%s\n", s.c_str());
@@ -122,6 +127,13 @@ void register_calibrate(CLI::App& app, Runner* run) {
                     r.moduli.c11, r.moduli.c12, r.moduli.young, r.moduli.poisson,
                     r.moduli.anisotropy, o->skip_strain, 100 * r.surrogate_error, full);
       head += line;
+      if (r.floor.error >= 0) {
+        std::snprintf(line, sizeof line,
+                      "# Column floor (best sum of conical laws along the load, none past its "
+                      "stroke): %.3f %%.\n",
+                      100 * r.floor.error);
+        head += line;
+      }
       std::ofstream out(o->out);
       out << head;
       for (const auto& g : r.groups)
@@ -154,6 +166,9 @@ void register_calibrate(CLI::App& app, Runner* run) {
                                "surrogate,full body' '" + o->curves + "'");
         if (rc != 0) return rc;
       }
+      if (r.floor.error >= 0)
+        std::printf("column floor (best sum of conical laws along the load): %.3f %%\n",
+                    100 * r.floor.error);
       std::printf("average relative error: %.3f %%\n",
                   100 * (r.full_error >= 0 ? r.full_error : r.surrogate_error));
       return 0;
