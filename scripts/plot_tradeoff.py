@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Draw the speed/accuracy data written by `conica-lab tradeoff` (CSV) as a Pareto chart (PNG).
 
-One panel per experiment and spring law: step time per 1 ms tick against force error (log-log),
+One panel per experiment and spring law: step time per 1 ms tick against force error (log-log;
+the RMS error when the CSV has it),
 markers by integrator, colour by resolution, the Pareto front joined, the 1 ms tick budget marked,
 unstable settings as red crosses along the top edge.
 """
@@ -23,13 +24,19 @@ def label(r):
     return r["integrator"]
 
 
+def err(r):
+    """The spike-robust RMS error when the CSV has it, else the largest per-tick error."""
+    v = float(r.get("rms_error") or "nan")
+    return v if math.isfinite(v) else float(r["error"])
+
+
 def pareto(rows):
-    ok = [r for r in rows if r["stable"] == "1" and math.isfinite(float(r["error"]))]
+    ok = [r for r in rows if r["stable"] == "1" and math.isfinite(err(r))]
     front = []
     for r in ok:
-        t, e = float(r["step_us"]), float(r["error"])
-        dominated = any(float(o["step_us"]) <= t and float(o["error"]) <= e and
-                        (float(o["step_us"]) < t or float(o["error"]) < e) for o in ok)
+        t, e = float(r["step_us"]), err(r)
+        dominated = any(float(o["step_us"]) <= t and err(o) <= e and
+                        (float(o["step_us"]) < t or err(o) < e) for o in ok)
         if not dominated:
             front.append(r)
     return sorted(front, key=lambda r: float(r["step_us"]))
@@ -56,15 +63,15 @@ def main() -> None:
         for j, law in enumerate(laws):
             ax = axes[i][j]
             sub = [r for r in rows if r["scene"] == scene and r["law"] == law]
-            stable = [r for r in sub if r["stable"] == "1" and math.isfinite(float(r["error"]))]
-            errs = [max(float(r["error"]), 1e-6) for r in stable] or [1e-3, 1]
+            stable = [r for r in sub if r["stable"] == "1" and math.isfinite(err(r))]
+            errs = [max(err(r), 1e-6) for r in stable] or [1e-3, 1]
             top = max(errs) * 3
             seen = set()
             for r in sub:
                 t = float(r["step_us"])
                 if r in stable:
                     key = (label(r), r["resolution"])
-                    ax.scatter(t, max(float(r["error"]), 1e-6), marker=MARKERS[r["integrator"]],
+                    ax.scatter(t, max(err(r), 1e-6), marker=MARKERS[r["integrator"]],
                                facecolors="none" if r["integrator"] == "implicit" and
                                r["newton"] == "1" else colour[r["resolution"]],
                                edgecolors=colour[r["resolution"]], s=30 + 12 * int(r["substeps"]),
@@ -79,11 +86,11 @@ def main() -> None:
             front = pareto(sub)
             if front:
                 ax.plot([float(r["step_us"]) for r in front],
-                        [max(float(r["error"]), 1e-6) for r in front], "k-", lw=1.5, zorder=2,
+                        [max(err(r), 1e-6) for r in front], "k-", lw=1.5, zorder=2,
                         label="Pareto front")
                 for r in front:
                     ax.annotate(f"{label(r)} x{r['substeps']}", (float(r["step_us"]),
-                                max(float(r["error"]), 1e-6)), fontsize=6, xytext=(4, -8),
+                                max(err(r), 1e-6)), fontsize=6, xytext=(4, -8),
                                 textcoords="offset points")
             ax.axvline(1000, color="tab:red", ls="--", lw=1, label="1 ms tick budget")
             for e in (0.01, 0.05, 0.10):
@@ -93,7 +100,8 @@ def main() -> None:
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.set_xlabel("step time per 1 ms tick, median (µs)")
-            ax.set_ylabel("force error, max |F − F_ref| / max |F_ref|")
+            ax.set_ylabel("force error, RMS |F − F_ref| / RMS |F_ref|" if "rms_error" in sub[0]
+                          else "force error, max |F − F_ref| / max |F_ref|")
             ax.set_title(f"{scene}, {law} springs")
             ax.grid(alpha=0.3, which="both")
             ax.legend(fontsize=5.5, loc="lower left", ncol=2)

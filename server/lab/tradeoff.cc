@@ -146,6 +146,18 @@ double force_error(const std::vector<Vec3>& f, const std::vector<Vec3>& ref) {
   return err / peak;
 }
 
+double force_rms_error(const std::vector<Vec3>& f, const std::vector<Vec3>& ref) {
+  const size_t n = std::min(f.size(), ref.size());
+  double diff2 = 0, ref2 = 0;
+  for (size_t k = 0; k < n; ++k) {
+    if (!f[k].allFinite() || !ref[k].allFinite()) return std::numeric_limits<double>::quiet_NaN();
+    diff2 += (f[k] - ref[k]).squaredNorm();
+    ref2 += ref[k].squaredNorm();
+  }
+  if (ref2 == 0) return diff2 == 0 ? 0 : std::numeric_limits<double>::infinity();
+  return std::sqrt(diff2 / ref2);
+}
+
 double register_principal_axes(std::vector<Vec3>* nodes, const std::vector<Vec3>& target) {
   auto frame = [](const std::vector<Vec3>& p, Vec3* c, Mat3* axes, Vec3* sd) {
     *c = Vec3::Zero();
@@ -192,15 +204,15 @@ double register_principal_axes(std::vector<Vec3>* nodes, const std::vector<Vec3>
 
 std::string tradeoff_csv_header() {
   return "scene,resolution,nodes,springs,integrator,newton,cg,substeps,law,step_us,error,stable,"
-         "cpu_us,rollbacks\n";
+         "cpu_us,rollbacks,rms_error\n";
 }
 
 std::string to_csv(const TradeoffRow& r) {
   char buf[512];
-  std::snprintf(buf, sizeof buf, "%s,%s,%d,%d,%s,%d,%d,%d,%s,%.4g,%.6g,%d,%.4g,%llu\n",
+  std::snprintf(buf, sizeof buf, "%s,%s,%d,%d,%s,%d,%d,%d,%s,%.4g,%.6g,%d,%.4g,%llu,%.6g\n",
                 r.scene.c_str(), r.resolution.c_str(), r.nodes, r.springs, r.integrator.c_str(),
                 r.newton, r.cg, r.substeps, r.law.c_str(), r.step_us, r.error, r.stable ? 1 : 0,
-                r.cpu_us, static_cast<unsigned long long>(r.rollbacks));
+                r.cpu_us, static_cast<unsigned long long>(r.rollbacks), r.rms_error);
   return buf;
 }
 
@@ -269,6 +281,7 @@ bool parse_tradeoff_csv(const std::string& text, std::vector<TradeoffRow>* rows,
     if (col.count("cpu_us") && !num("cpu_us", &r.cpu_us)) return false;
     double rb = 0;
     if (col.count("rollbacks") && !num("rollbacks", &rb)) return false;
+    if (col.count("rms_error") && !num("rms_error", &r.rms_error)) return false;
     r.nodes = static_cast<int>(nodes);
     r.springs = static_cast<int>(springs);
     r.newton = static_cast<int>(newton);
@@ -285,18 +298,23 @@ bool parse_tradeoff_csv(const std::string& text, std::vector<TradeoffRow>* rows,
   return true;
 }
 
+double front_error(const TradeoffRow& r) {
+  return std::isfinite(r.rms_error) ? r.rms_error : r.error;
+}
+
 std::vector<int> pareto_front(const std::vector<TradeoffRow>& rows) {
   std::vector<int> ok;
   for (int i = 0; i < static_cast<int>(rows.size()); ++i)
-    if (rows[i].stable && std::isfinite(rows[i].error)) ok.push_back(i);
+    if (rows[i].stable && std::isfinite(front_error(rows[i]))) ok.push_back(i);
   std::vector<int> front;
   for (int i : ok) {
     bool dominated = false;
+    const double eb = front_error(rows[i]);
     for (int j : ok) {
       if (j == i) continue;
       const TradeoffRow &a = rows[j], &b = rows[i];
-      if (a.step_us <= b.step_us && a.error <= b.error &&
-          (a.step_us < b.step_us || a.error < b.error)) {
+      const double ea = front_error(a);
+      if (a.step_us <= b.step_us && ea <= eb && (a.step_us < b.step_us || ea < eb)) {
         dominated = true;
         break;
       }
@@ -305,7 +323,7 @@ std::vector<int> pareto_front(const std::vector<TradeoffRow>& rows) {
   }
   std::sort(front.begin(), front.end(), [&](int a, int b) {
     return rows[a].step_us != rows[b].step_us ? rows[a].step_us < rows[b].step_us
-                                              : rows[a].error < rows[b].error;
+                                              : front_error(rows[a]) < front_error(rows[b]);
   });
   return front;
 }

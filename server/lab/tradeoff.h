@@ -19,6 +19,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,12 @@ BodySpec hooke_twin(const BodySpec& spec);
 // finite; 0 when the reference is identically zero and f equals it.
 double force_error(const std::vector<Vec3>& f, const std::vector<Vec3>& ref);
 
+// Spike-robust error: sqrt(sum_t |f(t) - ref(t)|^2) / sqrt(sum_t |ref(t)|^2), the RMS of the
+// per-tick difference over the reference's RMS (a relative L2 norm over the curve). A short
+// contact spike of a few ticks moves it by about sqrt(ticks in the spike / all ticks) of its
+// height instead of by its full height. NaN if any force is not finite.
+double force_rms_error(const std::vector<Vec3>& f, const std::vector<Vec3>& ref);
+
 // Maps `nodes` onto the frame of `target` by their principal axes: centroids matched, principal
 // axes aligned (of the four proper sign choices the one with the smallest mean nearest-node
 // distance), scaled by the mean ratio of the principal standard deviations. For comparing two
@@ -81,10 +88,14 @@ struct TradeoffRow {
   bool stable = true;       // no rollback, finite, peak force at most 2x the reference's
   double cpu_us = 0;        // us, mean thread CPU time per tick
   std::uint64_t rollbacks = 0;
+  double rms_error = std::numeric_limits<double>::quiet_NaN();  // force_rms_error (NaN: not
+                                                                // in the data)
 };
+// The error the Pareto front and chart use: rms_error when known, else error.
+double front_error(const TradeoffRow& row);
 
 // "scene,resolution,nodes,springs,integrator,newton,cg,substeps,law,step_us,error,stable,cpu_us,
-// rollbacks\n"
+// rollbacks,rms_error\n"
 std::string tradeoff_csv_header();
 std::string to_csv(const TradeoffRow& row);  // one line with '\n'
 // Parses a CSV with that header (column order free; extra columns ignored). On error returns
@@ -92,8 +103,8 @@ std::string to_csv(const TradeoffRow& row);  // one line with '\n'
 bool parse_tradeoff_csv(const std::string& text, std::vector<TradeoffRow>* rows,
                         std::string* error);
 
-// Indices of the stable rows with a finite error that no other stable row beats on both step
-// time and error (<= on both, < on one), sorted by step time.
+// Indices of the stable rows with a finite front_error that no other stable row beats on both
+// step time and front_error (<= on both, < on one), sorted by step time.
 std::vector<int> pareto_front(const std::vector<TradeoffRow>& rows);
 
 // The planner. Candidates: stable rows of `scene` with `law`. A candidate's cost for the target

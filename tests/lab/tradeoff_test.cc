@@ -54,6 +54,25 @@ TEST(TradeoffTest, ErrorNormIsRelativeMaxOverTheCurve) {
   EXPECT_TRUE(std::isnan(force_error(bad, ref)));
 }
 
+// The spike-robust error: a 3-tick contact spike of twice the held force in a 300-tick hold is
+// the whole max error (200 %) but sqrt(3 x 2^2 / 300) = 20 % of the RMS; a steady 1 % offset is
+// 1 % in both.
+TEST(TradeoffTest, RmsErrorIsRobustToShortSpikes) {
+  const std::vector<Vec3> ref(300, Vec3(0, 0, 1));
+  std::vector<Vec3> spike = ref;
+  for (int k = 100; k < 103; ++k) spike[k] = Vec3(0, 0, 3);
+  EXPECT_DOUBLE_EQ(force_error(spike, ref), 2.0);
+  EXPECT_NEAR(force_rms_error(spike, ref), std::sqrt(3 * 4.0 / 300), 1e-12);
+  std::vector<Vec3> offset = ref;
+  for (Vec3& f : offset) f.z() = 1.01;
+  EXPECT_NEAR(force_rms_error(offset, ref), 0.01, 1e-12);
+  EXPECT_NEAR(force_error(offset, ref), 0.01, 1e-12);
+  EXPECT_EQ(force_rms_error(ref, ref), 0.0);
+  std::vector<Vec3> bad = ref;
+  bad[5].x() = NAN;
+  EXPECT_TRUE(std::isnan(force_rms_error(bad, ref)));
+}
+
 TEST(TradeoffTest, ReferenceSettingHasZeroErrorAndRunsAreDeterministic) {
   const Model m = Build(compression_body(PaperMaterial(), kBox, {3, 3, 2}),
                         Integrator::kSymplecticEuler, 16);
@@ -145,6 +164,11 @@ TEST(TradeoffTest, ParetoFrontOfAHandMadeTable) {
       row(50, NAN),             // 6: no error: excluded
   };
   EXPECT_EQ(pareto_front(rows), (std::vector<int>{0, 2, 5}));
+  // With the RMS error known the front uses it: row 1's spikes (max 0.6) hide an RMS of 0.05.
+  std::vector<TradeoffRow> robust = rows;
+  for (TradeoffRow& r : robust) r.rms_error = r.error;
+  robust[1].rms_error = 0.05;
+  EXPECT_EQ(pareto_front(robust), (std::vector<int>{0, 1, 5}));
 }
 
 TEST(TradeoffTest, PrincipalAxisRegistrationRecoversARigidMapAndScale) {
@@ -189,6 +213,17 @@ TEST(TradeoffTest, CsvRoundTripAndErrors) {
   EXPECT_DOUBLE_EQ(rows[0].error, 0.0123);
   EXPECT_FALSE(rows[0].stable);
   EXPECT_EQ(rows[0].rollbacks, 3u);
+  EXPECT_TRUE(std::isnan(rows[0].rms_error));  // not set: written and read back as NaN
+  r.rms_error = 0.00456;
+  ASSERT_TRUE(parse_tradeoff_csv(tradeoff_csv_header() + to_csv(r), &rows, &error)) << error;
+  EXPECT_DOUBLE_EQ(rows[0].rms_error, 0.00456);
+  // A CSV from before the column: no RMS error, the front falls back to the max error.
+  const std::string old_csv =
+      "scene,resolution,nodes,springs,integrator,newton,cg,substeps,law,step_us,error,stable\n"
+      "compression,10mm,245,2000,implicit,2,40,4,hooke,123.4,0.0123,1\n";
+  ASSERT_TRUE(parse_tradeoff_csv(old_csv, &rows, &error)) << error;
+  EXPECT_TRUE(std::isnan(rows[0].rms_error));
+  EXPECT_DOUBLE_EQ(front_error(rows[0]), 0.0123);
   EXPECT_FALSE(parse_tradeoff_csv("scene,resolution\n", &rows, &error));
   EXPECT_NE(error.find("no column 'nodes'"), std::string::npos) << error;
   std::string bad = tradeoff_csv_header() + to_csv(r);

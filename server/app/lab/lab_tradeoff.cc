@@ -273,15 +273,17 @@ bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, st
           r.step_us = t.tick_us_median;
           r.cpu_us = t.cpu_us_mean;
           r.error = force_error(t.force, ref.force);
+          r.rms_error = force_rms_error(t.force, ref.force);
           r.rollbacks = t.rollbacks;
           double p = 0;
           for (const Vec3& f : t.force) p = std::max(p, f.norm());
           r.stable = t.rollbacks == 0 && t.finite && p <= 2 * peak;
           if (verbose)
-            std::printf("  %-11s %-7s %5d nodes %-10s %dx%-3d x%d %-7s %9.1f us  error %9.3g %%%s\n",
+            std::printf("  %-11s %-7s %5d nodes %-10s %dx%-3d x%d %-7s %9.1f us  error %9.3g %%"
+                        "  rms %9.3g %%%s\n",
                         r.scene.c_str(), r.resolution.c_str(), r.nodes, r.integrator.c_str(),
                         r.newton, r.cg, r.substeps, law, r.step_us, 100 * r.error,
-                        r.stable ? "" : "  UNSTABLE");
+                        100 * r.rms_error, r.stable ? "" : "  UNSTABLE");
           std::fflush(stdout);
           rows->push_back(r);
         }
@@ -348,14 +350,15 @@ void register_tradeoff(CLI::App& app, Runner* run) {
           for (const TradeoffRow& r : rows)
             if (r.scene == scene && r.law == law) sub.push_back(r);
           if (sub.empty()) continue;
-          std::printf("Pareto front, %s, %s:\n", scene, law);
+          std::printf("Pareto front (rms error; max error beside it), %s, %s:\n", scene, law);
           for (int i : pareto_front(sub)) {
             const TradeoffRow& r = sub[i];
             std::printf("  %-7s %5d nodes  %-10s", r.resolution.c_str(), r.nodes,
                         r.integrator.c_str());
             if (r.newton > 0) std::printf(" %dx%-3d", r.newton, r.cg);
             else std::printf("       ");
-            std::printf(" x%d  %9.1f us  %8.3g %%\n", r.substeps, r.step_us, 100 * r.error);
+            std::printf(" x%d  %9.1f us  %8.3g %% (max %.3g %%)\n", r.substeps, r.step_us,
+                        100 * front_error(r), 100 * r.error);
           }
         }
       std::printf("wrote %s\n", csv_path.c_str());
