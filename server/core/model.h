@@ -76,6 +76,10 @@ struct SolverOptions {
   // active_tolerance are integrated; the rest sleep at their state (see step.h).
   bool active_region = false;
   double active_tolerance = 1e-5;  // m, displacement tolerance that sizes the region
+  // Far field (sleeping nodes): 0 moves it multi-rate, one step of active_far_every ticks at a
+  // time, with the interval chosen from its stability bound; n > 0 forces that interval; -1
+  // freezes it at its state (see step.h).
+  int active_far_every = 0;
   double max_speed = 50;         // m/s: guard: faster nodes mean the step blew up
 };
 

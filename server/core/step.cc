@@ -351,8 +351,11 @@ void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep) {
 
 void hard_stop_project(const Model& m, State& s, Workspace& ws);
 
-void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
-  const int nn = m.num_nodes();
+// Contact of probes and planes with every node, or with the listed ones only (`nodes`; the
+// multi-rate far field keeps its nodes out of contact, see far_step).
+void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
+                    const std::vector<int>* nodes = nullptr) {
+  const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
   const double h = h_of(m);
   if (with_jacobian) std::fill(ws.contact_n.begin(), ws.contact_n.end(), Vec3::Zero());
   for (size_t q = 0; q < m.probes.size(); ++q) {
@@ -363,7 +366,8 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian)
     if (!p.active) continue;
     const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
     const double kc = m.probes[q].stiffness;
-    for (int i = 0; i < nn; ++i) {
+    for (int n = 0; n < nn; ++n) {
+      const int i = nodes ? (*nodes)[n] : n;
       Vec3 f, dir;
       Mat3 dfdc;
       if (!node_contact(s.x[i], m.normal[i], p.center, R, kc, &f, &dfdc, &dir)) continue;
@@ -381,7 +385,8 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian)
     pl.contacts = 0;
     const Vec3& n = m.planes[q].normal;
     const double kp = m.planes[q].stiffness;
-    for (int i = 0; i < nn; ++i) {
+    for (int t = 0; t < nn; ++t) {
+      const int i = nodes ? (*nodes)[t] : t;
       const double depth = pl.offset - n.dot(s.x[i]);
       if (depth <= 0) continue;
       const Vec3 f = kp * depth * n;
@@ -419,6 +424,10 @@ void forces_active(const Model& m, State& s, Workspace& ws) {
       const Vec3 f(ws.fx[i], ws.fy[i], ws.fz[i]);
       ws.force[i] = ws.awake[i] ? Vec3(m.mass[i] * (m.options.gravity - mu * s.v[i]) + f) : f;
     }
+  } else if (ws.far_every > 0) {
+    // Multi-rate: only the awake nodes and the border can receive a force.
+    for (int i : ws.awake_list) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
+    for (int i : ws.border) ws.force[i].setZero();
   } else {
     for (int i = 0; i < nn; ++i)
       ws.force[i] =
@@ -447,6 +456,7 @@ void forces_active(const Model& m, State& s, Workspace& ws) {
     ws.force[i] -= f;
     ws.force[j] += f;
   }
+  if (ws.far_every > 0) return;  // the far field moves: its pull is no reason to wake
   const double f_tol = ws.node_stiffness * m.options.active_tolerance;
   for (int i = 0; i < nn; ++i)
     if (!ws.awake[i] && m.fixed[i] != 7 && ws.force[i].squaredNorm() > f_tol * f_tol) ws.wake[i] = 1;
@@ -456,7 +466,7 @@ void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
   const int nn = m.num_nodes();
   if (m.options.active_region && ws.num_active >= 0 && !with_jacobian) {
     forces_active(m, s, ws);
-    contact_forces(m, s, ws, false);
+    contact_forces(m, s, ws, false, ws.far_every > 0 ? &ws.awake_list : nullptr);
     return;
   }
   const double mu = m.options.mass_damping;
@@ -535,6 +545,22 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
   if (!m.options.active_region) {
     advance_nodes(nn, h, symplectic, ws.force.front().data(), m.inv_mass.data(),
                   m.free_axes.front().data(), s.x.front().data(), s.v.front().data());
+    return;
+  }
+  if (ws.far_every > 0 && ws.num_active >= 0) {
+    // Multi-rate: the border keeps the impulse of the awake springs for its next far step.
+    for (int i : ws.border) ws.impulse[i] += h * ws.force[i];
+    for (int i : ws.awake_list) {
+      if (m.fixed[i] == 7) continue;
+      const Vec3 a = (ws.force[i] * m.inv_mass[i]).cwiseProduct(m.free_axes[i]);
+      if (symplectic) {
+        s.v[i] += h * a;
+        s.x[i] += h * s.v[i];
+      } else {
+        s.x[i] += h * s.v[i];
+        s.v[i] += h * a;
+      }
+    }
     return;
   }
   for (int i = 0; i < nn; ++i) {
@@ -805,6 +831,55 @@ Workspace::Workspace(const Model& m) {
   }
   modulus = volume > 0 ? kl2 / (6 * volume) : 1.0;
   node_stiffness = nn > 0 ? 2 * ksum / nn : 1.0;
+  // Multi-rate far field: omega^2 <= max_i 2 sum(a b K0) / m_i over free nodes (Gershgorin on
+  // M^-1 K in the linear phase), and symplectic Euler needs H omega < 2.
+  {
+    std::vector<double> node_k(nn, 0.0);
+    for (const SpringGroup& g : m.groups) {
+      const double k0 = (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k;
+      for (int k = g.begin; k < g.end; ++k) {
+        const double kax = m.force_scale[k] * m.deflection_scale[k] * k0;
+        node_k[m.spring_i[k]] += kax;
+        node_k[m.spring_j[k]] += kax;
+      }
+      tangent_limit.push_back(1.5 * (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k);
+      has_maxwell |= g.card.maxwell_k > 0;
+    }
+    double omega2 = 0;
+    for (size_t i = 0; i < nn; ++i)
+      if (m.fixed[i] != 7) omega2 = std::max(omega2, 2 * node_k[i] * m.inv_mass[i]);
+    const double dt = m.options.dt;
+    far_max_every = omega2 > 0 ? std::max(1, int(0.9 * 2 / (dt * std::sqrt(omega2)))) : 1;
+    // The light nodes (edges and corners of a lattice, small cells of a mesh) set that bound; the
+    // automatic interval is the typical node's (median of 2 sum(a b K0) / m), and far nodes
+    // lighter than their springs allow at that interval step with a larger inertia
+    // m' = H^2 2 sum(a b K0) / (2 * 0.9)^2 (their weight and damping keep the true mass), so that
+    // every row of M'^-1 K meets H omega < 2 with the 0.9 margin.
+    std::vector<double> rate;
+    for (size_t i = 0; i < nn; ++i)
+      if (m.fixed[i] != 7) rate.push_back(2 * node_k[i] * m.inv_mass[i]);
+    int typical = far_max_every;
+    if (!rate.empty()) {
+      std::nth_element(rate.begin(), rate.begin() + rate.size() / 2, rate.end());
+      const double w2 = rate[rate.size() / 2];
+      if (w2 > 0) typical = std::max(far_max_every, int(0.9 * 2 / (dt * std::sqrt(w2))));
+    }
+    far_every = m.options.active_far_every < 0    ? 0
+                : m.options.active_far_every == 0 ? typical
+                                                  : m.options.active_far_every;
+    far_inv_mass = m.inv_mass;
+    const double H = std::max(far_every, 1) * dt;
+    for (size_t i = 0; i < nn; ++i)
+      if (node_k[i] > 0)
+        far_inv_mass[i] = std::min(m.inv_mass[i], (2 * 0.9) * (2 * 0.9) / (H * H * 2 * node_k[i]));
+  }
+  awake_list.reserve(nn);
+  border.reserve(nn);
+  in_border.assign(nn, 0);
+  slow.reserve(ns);
+  impulse.assign(nn, Vec3::Zero());
+  slow_scale.assign(ns, 0.0);
+  chunk_slow.assign(chunks.size(), 0);
   for (const SpringGroup& g : m.groups) {
     for (int k = g.begin; k < g.end; ++k) {
       const double l0 = m.rest_length[k];
@@ -949,7 +1024,7 @@ void update_region(const Model& m, State& s, Workspace& ws) {
     const std::uint8_t now = near || ws.wake[i] || (ws.awake[i] && keep);
     if (now != ws.awake[i]) {
       changed = true;
-      if (!now) s.v[i].setZero();  // falls asleep at its state
+      if (!now && ws.far_every <= 0) s.v[i].setZero();  // frozen: falls asleep at its state
       ws.awake[i] = now;
     }
     ws.wake[i] = 0;
@@ -957,26 +1032,137 @@ void update_region(const Model& m, State& s, Workspace& ws) {
   }
   s.counters.awake_nodes = awake_count;
   if (!changed) return;
+  ws.awake_list.clear();  // capacities reserved for every node and spring: no allocation
+  for (int i = 0; i < nn; ++i)
+    if (ws.awake[i]) ws.awake_list.push_back(i);
+  for (int i : ws.border) ws.in_border[i] = 0;
+  ws.border.clear();
+  ws.slow.clear();
+  const bool multirate = ws.far_every > 0;
   int n = 0;
   for (int k = 0; k < m.num_springs(); ++k) {
-    const bool on = ws.awake[m.spring_i[k]] || ws.awake[m.spring_j[k]];
+    const int i = m.spring_i[k], j = m.spring_j[k];
+    const bool on = ws.awake[i] || ws.awake[j];
     if (on) ws.active[n++] = k;
     ws.active_scale[k] = on ? m.force_scale[k] : 0.0;
+    if (!multirate) continue;
+    ws.slow_scale[k] = on ? 0.0 : m.force_scale[k];
+    if (!on && ws.runs.empty()) ws.slow.push_back(k);
+    if (on && !(ws.awake[i] && ws.awake[j])) {
+      const int b = ws.awake[i] ? j : i;
+      if (!ws.in_border[b]) ws.border.push_back(b);
+      ws.in_border[b] = 1;
+    }
   }
   ws.num_active = n;
   for (size_t c = 0; c < ws.chunks.size(); ++c) {
-    bool any = false;
-    for (int k = ws.chunks[c].k0; k < ws.chunks[c].k1 && !any; ++k) any = ws.active_scale[k] != 0;
+    bool any = false, any_slow = false;
+    for (int k = ws.chunks[c].k0; k < ws.chunks[c].k1; ++k) {
+      any |= ws.active_scale[k] != 0;
+      any_slow |= multirate && ws.slow_scale[k] != 0;
+    }
     ws.chunk_awake[c] = any;
+    ws.chunk_slow[c] = any_slow;
   }
+}
+
+// One symplectic Euler step of H = far_every ticks for the sleeping nodes: forces of the springs
+// between sleeping nodes and the node terms now, plus the impulse the awake springs gave over the
+// interval. Far springs out of their linear phase and far nodes behind a plane are marked to
+// wake at the next interval.
+void far_step(const Model& m, State& s, Workspace& ws) {
+  const int nn = m.num_nodes();
+  const double H = ws.far_every * m.options.dt, mu = m.options.mass_damping;
+  std::fill(ws.fx.begin(), ws.fx.end(), 0.0);
+  std::fill(ws.fy.begin(), ws.fy.end(), 0.0);
+  std::fill(ws.fz.begin(), ws.fz.end(), 0.0);
+  if (!ws.runs.empty()) {
+    copy_positions(s.x, ws);
+    std::int64_t slack = kNoRoom;
+    for (size_t c = 0; c < ws.chunks.size(); ++c) {
+      if (!ws.chunk_slow[c]) continue;
+      const Workspace::Chunk& ch = ws.chunks[c];
+      chunk_forces(m, s, ws, ch, false, ws.slow_scale.data(), &slack);
+      const double limit = ws.tangent_limit[ch.group];
+      const double stiffest =
+          *std::max_element(ws.chunk_tangent.begin(), ws.chunk_tangent.begin() + (ch.k1 - ch.k0));
+      if (!(stiffest > limit)) continue;
+      for (int k = ch.k0; k < ch.k1; ++k)
+        if (ws.slow_scale[k] != 0 && ws.chunk_tangent[k - ch.k0] > limit)
+          ws.wake[m.spring_i[k]] = ws.wake[m.spring_j[k]] = 1;
+    }
+  } else {
+    for (int k : ws.slow) {
+      const int i = m.spring_i[k], j = m.spring_j[k];
+      const Vec3 u = s.x[j] - s.x[i];
+      const double l = u.norm();
+      const Vec3 d = u / std::max(l, 1e-300);
+      const double delta = m.deflection_scale[k] * (m.rest_length[k] - l);
+      const SpringGroup& g = m.groups[ws.spring_group[k]];
+      double load = g.card.hooke_k * delta, tangent = g.card.hooke_k;
+      if (g.law) {
+        const LawSample e = g.law->evaluate(delta);
+        load = e.force;
+        tangent = e.stiffness;
+      }
+      if (g.viscous) {
+        const double ddot = -m.deflection_scale[k] * d.dot(s.v[j] - s.v[i]);
+        load += g.card.damping * ddot + g.card.maxwell_k * (delta - s.maxwell[k]);
+        tangent += g.card.maxwell_k;
+      }
+      if (tangent > ws.tangent_limit[ws.spring_group[k]]) ws.wake[i] = ws.wake[j] = 1;
+      const Vec3 f = m.force_scale[k] * load * d;
+      ws.fx[i] -= f.x();
+      ws.fy[i] -= f.y();
+      ws.fz[i] -= f.z();
+      ws.fx[j] += f.x();
+      ws.fy[j] += f.y();
+      ws.fz[j] += f.z();
+    }
+  }
+  for (int i = 0; i < nn; ++i) {
+    if (ws.awake[i] || m.fixed[i] == 7) continue;
+    const Vec3 f = m.mass[i] * (m.options.gravity - mu * s.v[i]) +
+                   Vec3(ws.fx[i], ws.fy[i], ws.fz[i]);
+    s.v[i] += ((H * f + ws.impulse[i]) * ws.far_inv_mass[i]).cwiseProduct(m.free_axes[i]);
+    s.x[i] += (H * s.v[i]).cwiseProduct(m.free_axes[i]);
+    ws.impulse[i].setZero();
+    for (size_t q = 0; q < m.planes.size(); ++q)
+      if (s.planes[q].offset - m.planes[q].normal.dot(s.x[i]) > 0) ws.wake[i] = 1;
+  }
+}
+
+// The guard over the listed nodes only.
+bool nodes_ok(const Model& m, State& s, const std::vector<int>& nodes) {
+  const double vmax2 = m.options.max_speed * m.options.max_speed;
+  bool finite = true, slow = true;
+  for (int i : nodes) {
+    finite &= s.x[i].allFinite() && s.v[i].allFinite();
+    slow &= !(s.v[i].squaredNorm() > vmax2);
+  }
+  if (!finite) ++s.counters.nan_events;
+  if (finite && !slow) ++s.counters.speed_events;
+  return finite && slow;
 }
 
 StepStatus step(const Model& m, State& s, Workspace& ws) {
   const bool region = m.options.active_region && m.options.integrator != Integrator::kImplicitEuler;
-  if (region) update_region(m, s, ws);
-  std::copy(s.x.begin(), s.x.end(), ws.good_x.begin());
-  std::copy(s.v.begin(), s.v.end(), ws.good_v.begin());
-  std::copy(s.maxwell.begin(), s.maxwell.end(), ws.good_maxwell.begin());
+  // Multi-rate far field: the region is chosen at the start of an interval, the far field steps at
+  // its end; in between only the awake nodes change, and only they are saved and checked.
+  const bool multirate = region && ws.far_every > 0;
+  const bool far_tick = multirate && ws.far_phase == ws.far_every - 1;
+  if (region && (!multirate || ws.far_phase == 0 || ws.num_active < 0)) update_region(m, s, ws);
+  const bool partial = multirate && !far_tick;
+  if (partial) {
+    for (int i : ws.awake_list) {
+      ws.good_x[i] = s.x[i];
+      ws.good_v[i] = s.v[i];
+    }
+  } else {
+    std::copy(s.x.begin(), s.x.end(), ws.good_x.begin());
+    std::copy(s.v.begin(), s.v.end(), ws.good_v.begin());
+  }
+  if (ws.has_maxwell) std::copy(s.maxwell.begin(), s.maxwell.end(), ws.good_maxwell.begin());
   const double h = h_of(m);
   for (int sub = 0; sub < m.options.substeps; ++sub) {
     switch (m.options.integrator) {
@@ -987,13 +1173,21 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
     hard_stop(m, s, ws);
     relax_maxwell(m, s, h);
   }
+  if (far_tick) far_step(m, s, ws);
+  if (multirate) ws.far_phase = (ws.far_phase + 1) % ws.far_every;
   ++s.counters.steps;
   ++s.tick;
   s.time += m.options.dt;
-  if (state_ok(m, s)) return StepStatus::kOk;
-  std::copy(ws.good_x.begin(), ws.good_x.end(), s.x.begin());
+  if (partial ? nodes_ok(m, s, ws.awake_list) : state_ok(m, s)) return StepStatus::kOk;
+  if (partial) {
+    for (int i : ws.awake_list) s.x[i] = ws.good_x[i];
+    for (int i : ws.border) ws.impulse[i].setZero();
+  } else {
+    std::copy(ws.good_x.begin(), ws.good_x.end(), s.x.begin());
+  }
   std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
-  std::copy(ws.good_maxwell.begin(), ws.good_maxwell.end(), s.maxwell.begin());
+  if (ws.has_maxwell)
+    std::copy(ws.good_maxwell.begin(), ws.good_maxwell.end(), s.maxwell.begin());
   ++s.counters.rollbacks;
   return StepStatus::kRolledBack;
 }

@@ -31,6 +31,19 @@
 // with an awake end act (lattices: only chunks holding one are evaluated, whole, with the other
 // springs' forces scaled to zero). E is the network's isotropic estimate sum(k l0^2) / (6 V),
 // nu = 1/4.
+// The far field (sleeping nodes) is either frozen (active_far_every = -1: the body is stiffer than
+// it is, since the Boussinesq displacement decays only as 1/r) or multi-rate: it takes one
+// symplectic Euler step of H = N dt every N ticks, with the forces of the springs between sleeping
+// nodes and the node terms at that time, plus the impulse the awake springs gave it tick by tick
+// over the interval (so momentum passes between the two sides exactly). The awake side sees the
+// far nodes where their last step left them. N is the interval the far field's linear phase
+// allows at a typical node: H omega < 2 with omega^2 bounded per node (Gershgorin) by
+// 2 sum(a b K0) / m, times a 0.9 margin, at the median node; lighter far nodes (a lattice's edges
+// and corners) take the far step with the larger inertia that keeps their own bound (selective
+// mass scaling; gravity and damping keep the true mass). A far spring whose tangent stiffness
+// leaves the linear phase (more than 1.5 K0), or a far node behind a plane, wakes its nodes at the
+// next interval, when the region is chosen again; between intervals only the awake side costs
+// anything: its springs, its nodes and the sleeping nodes they pull (the border).
 //
 // Solid height: the law's stiffness cap (ConicalLaw) keeps k_t finite, and a hard stop projects
 // any spring shorter than max(l0 - S/b, min_length_fraction l0) back to that length, removing
@@ -92,6 +105,20 @@ struct Workspace {
   int num_active = -1;                            // -1: region not built yet
   double modulus = 0;                             // Pa, network estimate
   double node_stiffness = 0;                      // N/m, mean axial stiffness per node
+  // Multi-rate far field.
+  int far_every = 0;                              // N ticks per far step; 0: frozen far field
+  int far_max_every = 1;                          // the far field's stability bound on N
+  int far_phase = 0;                              // ticks into the current interval
+  std::vector<int> awake_list;                    // awake nodes
+  std::vector<int> border;                        // sleeping nodes an awake spring touches
+  std::vector<std::uint8_t> in_border;            // (num_nodes)
+  std::vector<Vec3> impulse;                      // (num_nodes) N s from awake springs, this interval
+  std::vector<double> slow_scale;                 // (num_springs) force_scale if both ends sleep
+  std::vector<int> slow;                          // springs with both ends asleep (no runs)
+  std::vector<std::uint8_t> chunk_slow;           // (chunks) a spring of the chunk has both asleep
+  std::vector<double> far_inv_mass;               // (num_nodes) 1/kg, inertia of a far step
+  std::vector<double> tangent_limit;              // (groups) card units: far springs beyond wake
+  bool has_maxwell = false;                       // a group has a Maxwell branch
   // Last good state for rollback.
   std::vector<Vec3> good_x, good_v;
   std::vector<double> good_maxwell;

@@ -1,6 +1,8 @@
 // conica-lab active-region: the same probe path with and without the active region; ends with
 // "force error: X %, speedup: Y x" (force error: largest difference of probe force over the
-// largest full-simulation probe force; speedup: total step time without / with).
+// largest full-simulation probe force; speedup: total step time without / with). --far-every
+// chooses how the far field moves (see core/step.h).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -19,6 +21,7 @@ void register_active_region(CLI::App& app, Runner* run) {
     long ticks = 2000;
     bool relative = false;
     double tolerance = 1e-5;
+    int far_every = 0;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -27,6 +30,10 @@ void register_active_region(CLI::App& app, Runner* run) {
   cmd->add_option("--probe-script", o->script, "CSV t,probe,x,y,z (s, index, m)")->required();
   cmd->add_option("--ticks", o->ticks, "number of ticks")->capture_default_str();
   cmd->add_option("--tolerance", o->tolerance, "displacement tolerance sizing the region, m")
+      ->capture_default_str();
+  cmd->add_option("--far-every", o->far_every,
+                  "far field: one step every N ticks (0: the longest its stability bound allows, "
+                  "-1: frozen)")
       ->capture_default_str();
   cmd->add_flag("--relative", o->relative, "x, y, z are fractions of the bounding box");
   cmd->callback([o, run] {
@@ -64,10 +71,18 @@ void register_active_region(CLI::App& app, Runner* run) {
       Model active = full;
       active.options.active_region = true;
       active.options.active_tolerance = o->tolerance;
+      active.options.active_far_every = o->far_every;
+      if (o->far_every < -1) {
+        std::fprintf(stderr, "conica-lab active-region: --far-every must be >= -1, got %d\n",
+                     o->far_every);
+        return 2;
+      }
       struct Run {
         std::vector<Vec3> force;  // (ticks x probes)
+        std::vector<double> tick_us;  // (ticks) step time of each tick, us
         double seconds = 0;
         std::uint64_t awake_sum = 0, rollbacks = 0;
+        int far_every = 0, far_max_every = 0;
       };
       auto drive = [&](const Model& m) {
         Run r;
@@ -81,11 +96,16 @@ void register_active_region(CLI::App& app, Runner* run) {
           }
           const auto t0 = std::chrono::steady_clock::now();
           step(m, s, ws);
-          r.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          const double dt_s =
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          r.seconds += dt_s;
+          r.tick_us.push_back(1e6 * dt_s);
           for (const ProbeState& p : s.probes) r.force.push_back(p.force);
           r.awake_sum += m.options.active_region ? s.counters.awake_nodes : m.num_nodes();
         }
         r.rollbacks = s.counters.rollbacks;
+        r.far_every = ws.far_every;
+        r.far_max_every = ws.far_max_every;
         return r;
       };
       const Run a = drive(full), b = drive(active);
@@ -105,6 +125,19 @@ void register_active_region(CLI::App& app, Runner* run) {
                   1e6 * b.seconds / o->ticks, double(b.awake_sum) / o->ticks,
                   100.0 * b.awake_sum / (double(o->ticks) * full.num_nodes()),
                   (unsigned long)b.rollbacks);
+      if (b.far_every > 0)
+        std::printf("far field: one step every %d ticks (stability bound %d)\n", b.far_every,
+                    b.far_max_every);
+      else
+        std::printf("far field: frozen\n");
+      auto quantile = [](std::vector<double> v, double q) {
+        std::sort(v.begin(), v.end());
+        return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
+      };
+      std::printf("step time median / 99th percentile / max: full %.0f / %.0f / %.0f us, "
+                  "active %.0f / %.0f / %.0f us\n",
+                  quantile(a.tick_us, 0.5), quantile(a.tick_us, 0.99), quantile(a.tick_us, 1.0),
+                  quantile(b.tick_us, 0.5), quantile(b.tick_us, 0.99), quantile(b.tick_us, 1.0));
       std::printf("at the peak force: error %.3g %%\n", fmax > 0 ? 100 * err_at_peak / fmax : 0.0);
       std::printf("force error: %.3g %%, speedup: %.2f x\n", fmax > 0 ? 100 * err / fmax : 0.0,
                   a.seconds / b.seconds);
