@@ -1007,8 +1007,12 @@ void update_region(const Model& m, State& s, Workspace& ws) {
     const ProbeState& p = s.probes[q];
     if (!p.active) continue;
     const double rp = p.radius > 0 ? p.radius : m.probes[q].radius;
-    const double boussinesq =
+    double boussinesq =
         p.force.norm() * (1 - kNu * kNu) / (M_PI * ws.modulus * m.options.active_tolerance);
+    // Multi-rate: the radius grows in steps of 10 % of itself, so that a growing press rebuilds
+    // the region's lists (O(springs)) every few intervals rather than at every one.
+    if (ws.far_every > 0 && boussinesq > rp)
+      boussinesq = rp * std::pow(1.1, std::ceil(std::log(boussinesq / rp) / std::log(1.1)));
     R[np] = std::max(2 * rp, rp + boussinesq);
     Rsleep[np] = 1.25 * R[np];
     c[np++] = p.center;
@@ -1084,9 +1088,10 @@ void far_step(const Model& m, State& s, Workspace& ws) {
       const Workspace::Chunk& ch = ws.chunks[c];
       chunk_forces(m, s, ws, ch, false, ws.slow_scale.data(), &slack);
       const double limit = ws.tangent_limit[ch.group];
-      const double stiffest =
-          *std::max_element(ws.chunk_tangent.begin(), ws.chunk_tangent.begin() + (ch.k1 - ch.k0));
-      if (!(stiffest > limit)) continue;
+      int stiff = 0;  // counted branch-free: the common case (none) costs a vectorised pass
+      const double* __restrict tangent = ws.chunk_tangent.data();
+      for (int t = 0; t < ch.k1 - ch.k0; ++t) stiff += tangent[t] > limit;
+      if (stiff == 0) continue;
       for (int k = ch.k0; k < ch.k1; ++k)
         if (ws.slow_scale[k] != 0 && ws.chunk_tangent[k - ch.k0] > limit)
           ws.wake[m.spring_i[k]] = ws.wake[m.spring_j[k]] = 1;
