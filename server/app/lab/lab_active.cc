@@ -110,11 +110,13 @@ void register_active_region(CLI::App& app, Runner* run) {
       };
       const Run a = drive(full), b = drive(active);
       double fmax = 0, err = 0, err_at_peak = 0;
+      size_t worst = 0;
       for (size_t k = 0; k < a.force.size(); ++k) {
         if (a.force[k].norm() > fmax) {
           fmax = a.force[k].norm();
           err_at_peak = (a.force[k] - b.force[k]).norm();
         }
+        if ((a.force[k] - b.force[k]).norm() > err) worst = k;
         err = std::max(err, (a.force[k] - b.force[k]).norm());
       }
       std::printf("scene %s: %d nodes, %d springs, %ld ticks\n", o->scene.c_str(),
@@ -138,6 +140,12 @@ void register_active_region(CLI::App& app, Runner* run) {
                   "active %.0f / %.0f / %.0f us\n",
                   quantile(a.tick_us, 0.5), quantile(a.tick_us, 0.99), quantile(a.tick_us, 1.0),
                   quantile(b.tick_us, 0.5), quantile(b.tick_us, 0.99), quantile(b.tick_us, 1.0));
+      {
+        const size_t np = std::max<size_t>(1, ps.probes.size());
+        std::printf("worst tick: t = %.3f s, full %.4g N, active %.4g N\n",
+                    (worst / np + 1) * full.options.dt, a.force[worst].norm(),
+                    b.force[worst].norm());
+      }
       std::printf("at the peak force: error %.3g %%\n", fmax > 0 ? 100 * err_at_peak / fmax : 0.0);
       std::printf("force error: %.3g %%, speedup: %.2f x\n", fmax > 0 ? 100 * err / fmax : 0.0,
                   a.seconds / b.seconds);
