@@ -84,5 +84,47 @@ TEST(AllocationTest, StepAllocatesNothing) {
   }
 }
 
+TEST(AllocationTest, ActiveRegionStepAllocatesNothing) {
+  // Multi-rate far field: far steps, region rebuilds as the probe moves and presses, frozen too.
+  for (int far_every : {0, 3, -1}) {
+    BodySpec b;
+    b.mesh = make_box_lattice(Vec3(0.12, 0.03, 0.02), {12, 3, 2});
+    b.density = 1000;
+    SpringCard c;
+    c.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};
+    c.stiffness_cap = 20;
+    c.damping = 0.01;
+    b.groups.push_back({"tissue", c, kAllFamilies, {}, Vec3::Zero(), 10});
+    FixedSelector base;
+    base.kind = FixedSelector::Kind::kPlane;
+    b.fixed.push_back(base);
+    b.options.mass_damping = 5;
+    b.options.active_region = true;
+    b.options.active_tolerance = 2e-4;
+    b.options.active_far_every = far_every;
+    b.probes.push_back(ProbeSpec{0.006, 0});
+    Model m;
+    ASSERT_EQ(build_model(b, &m), "");
+    State s = make_state(m);
+    Workspace ws(m);
+    set_probe(s, 0, Vec3(0.02, 0.015, 0.025));
+    for (int i = 0; i < 5; ++i) step(m, s, ws);  // warm up
+    g_allocations = 0;
+    g_counting = true;
+    std::uint64_t awake_min = ~0ull, awake_max = 0;
+    for (int i = 0; i < 400; ++i) {
+      set_probe(s, 0, Vec3(0.02 + 2e-4 * i, 0.015, 0.025 - 1e-5 * std::min(i, 200)));
+      step(m, s, ws);
+      awake_min = std::min(awake_min, s.counters.awake_nodes);
+      awake_max = std::max(awake_max, s.counters.awake_nodes);
+    }
+    g_counting = false;
+    EXPECT_EQ(g_allocations.load(), 0) << "far_every " << far_every;
+    EXPECT_LT(awake_max, static_cast<std::uint64_t>(m.num_nodes()));
+    EXPECT_NE(awake_min, awake_max);  // the region did change while counting
+    EXPECT_EQ(s.counters.rollbacks, 0u);
+  }
+}
+
 }  // namespace
 }  // namespace conica
