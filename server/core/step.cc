@@ -1,8 +1,6 @@
-#include "core/step.h"
+#include "core/step_detail.h"
 
 #include "core/body.h"
-
-#include <Eigen/LU>
 
 #include <algorithm>
 #include <bit>
@@ -12,8 +10,6 @@
 
 namespace conica {
 namespace {
-
-double h_of(const Model& m) { return m.options.dt / m.options.substeps; }
 
 // The smallest room (length - min_length) of a set of springs is reduced as the int64 bit
 // patterns of the doubles: for rooms >= 0 their order is the doubles' order, any negative room
@@ -188,25 +184,6 @@ double room_of(std::int64_t bits) {
   return n;
 }
 
-// Springs that x + t dx would make shorter than their hard-stop length (measured along their
-// current direction, so an inversion counts) and than they are now.
-[[gnu::noinline]] int count_blocked(int ns, const double* __restrict X, const double* __restrict DX,
-                                    double t, const int* __restrict si, const int* __restrict sj,
-                                    const double* __restrict ux, const double* __restrict uy,
-                                    const double* __restrict uz, const double* __restrict lmin,
-                                    const double* __restrict len) {
-  int n = 0;
-  for (int k = 0; k < ns; ++k) {
-    const int i = 3 * si[k], j = 3 * sj[k];
-    const double dx = X[j] + t * DX[j] - X[i] - t * DX[i];
-    const double dy = X[j + 1] + t * DX[j + 1] - X[i + 1] - t * DX[i + 1];
-    const double dz = X[j + 2] + t * DX[j + 2] - X[i + 2] - t * DX[i + 2];
-    const double l = dx * ux[k] + dy * uy[k] + dz * uz[k];
-    n += (l < lmin[k]) & (l < len[k]);
-  }
-  return n;
-}
-
 // Keeps a structure-of-arrays copy of x (the positions of this geometry, for the hard-stop test).
 void copy_positions(const std::vector<Vec3>& x, Workspace& ws) {
   const int nn = static_cast<int>(x.size());
@@ -356,7 +333,7 @@ void hard_stop_project(const Model& m, State& s, Workspace& ws);
 void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                     const std::vector<int>* nodes = nullptr) {
   const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
-  const double h = h_of(m);
+  const double h = detail::substep_of(m);
   if (with_jacobian) std::fill(ws.contact_n.begin(), ws.contact_n.end(), Vec3::Zero());
   for (size_t q = 0; q < m.probes.size(); ++q) {
     ProbeState& p = s.probes[q];
@@ -539,7 +516,7 @@ void hard_stop_project(const Model& m, State& s, Workspace& ws) {
 }
 
 void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic) {
-  const double h = h_of(m);
+  const double h = detail::substep_of(m);
   forces_impl(m, s, ws, false);
   const int nn = m.num_nodes();
   if (!m.options.active_region) {
@@ -574,167 +551,6 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
       s.v[i] += h * a;
     }
   }
-}
-
-// Per-spring part of y = A p: t_k = beta w + (alpha - beta)(d.w) d with w = p_j - p_i, scattered
-// as y_i -= t_k, y_j += t_k. Two passes per chunk: a vectorisable one computing t, then the
-// scatter, so the chunk's t stays in L1.
-[[gnu::noinline]] void system_springs(int ns, const double* __restrict P, const int* __restrict si,
-                                      const int* __restrict sj, const double* __restrict ux,
-                                      const double* __restrict uy, const double* __restrict uz,
-                                      const double* __restrict alpha,
-                                      const double* __restrict beta, double* __restrict Y) {
-  constexpr int kChunk = 512;
-  alignas(64) double tx[kChunk], ty[kChunk], tz[kChunk];
-  for (int begin = 0; begin < ns; begin += kChunk) {
-    const int n = std::min(kChunk, ns - begin);
-    const int* __restrict ci = si + begin;
-    const int* __restrict cj = sj + begin;
-    for (int q = 0; q < n; ++q) {
-      const int k = begin + q;
-      const int i = 3 * ci[q], j = 3 * cj[q];
-      const double wx = P[j] - P[i], wy = P[j + 1] - P[i + 1], wz = P[j + 2] - P[i + 2];
-      const double c = (alpha[k] - beta[k]) * (ux[k] * wx + uy[k] * wy + uz[k] * wz);
-      tx[q] = beta[k] * wx + c * ux[k];
-      ty[q] = beta[k] * wy + c * uy[k];
-      tz[q] = beta[k] * wz + c * uz[k];
-    }
-    for (int q = 0; q < n; ++q) {
-      const int i = 3 * ci[q], j = 3 * cj[q];
-      Y[i] -= tx[q];
-      Y[i + 1] -= ty[q];
-      Y[i + 2] -= tz[q];
-      Y[j] += tx[q];
-      Y[j + 1] += ty[q];
-      Y[j + 2] += tz[q];
-    }
-  }
-}
-
-// y = A p with A = M (1 + h mu) + sum_s [alpha d d^T + beta (I - d d^T)] (+ contact) on free
-// axes.
-void apply_system(const Model& m, const Workspace& ws, const std::vector<Vec3>& p,
-                  std::vector<Vec3>& y) {
-  const int nn = m.num_nodes();
-  const double mfac = 1.0 + h_of(m) * m.options.mass_damping;
-  for (int i = 0; i < nn; ++i) {
-    const Vec3& cn = ws.contact_n[i];
-    y[i] = m.mass[i] * mfac * p[i] + cn * cn.dot(p[i]);
-  }
-  system_springs(m.num_springs(), p.front().data(), m.spring_i.data(), m.spring_j.data(),
-                 ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.alpha.data(), ws.beta.data(),
-                 y.front().data());
-  for (int i = 0; i < nn; ++i) y[i] = y[i].cwiseProduct(m.free_axes[i]);
-}
-
-void integrate_implicit(const Model& m, State& s, Workspace& ws) {
-  const double h = h_of(m);
-  const int nn = m.num_nodes(), ns = m.num_springs();
-  for (int i = 0; i < nn; ++i) {
-    ws.x0[i] = s.x[i];
-    ws.v0[i] = s.v[i];
-    s.x[i] += h * s.v[i].cwiseProduct(m.free_axes[i]);  // predictor x1 = x0 + h v0
-  }
-  hard_stop(m, s, ws);  // the predictor must not cross solid height either
-
-  for (int it = 0; it < m.options.newton_iterations; ++it) {
-    for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.x0[i]) / h;
-    forces_impl(m, s, ws, true);
-    // rhs = -h^2 R = h^2 f - M (x1 - x0 - h v0)
-    for (int i = 0; i < nn; ++i)
-      ws.rhs[i] = (h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.x0[i] - h * ws.v0[i]))
-                      .cwiseProduct(m.free_axes[i]);
-    // System coefficients and the block-Jacobi preconditioner.
-    const double mfac = 1.0 + h * m.options.mass_damping;
-    for (int i = 0; i < nn; ++i) {
-      const Vec3& cn = ws.contact_n[i];
-      ws.diag_inv[i] = m.mass[i] * mfac * Mat3::Identity() + cn * cn.transpose();
-    }
-    for (const SpringGroup& g : m.groups) {
-      const double c = g.card.damping;
-      for (int k = g.begin; k < g.end; ++k) {
-        const double a = m.force_scale[k], b = m.deflection_scale[k];
-        const double kax = std::min(a * b * ws.tangent[k], 1e300);
-        const double tension = -a * ws.load[k];
-        ws.alpha[k] = h * h * kax + h * a * b * b * c;
-        ws.beta[k] = h * h * std::max(0.0, tension / std::max(ws.length[k], 1e-300));
-      }
-    }
-    // Block diagonal: beta I + (alpha - beta) d d^T of every spring on both its nodes.
-    for (int k = 0; k < ns; ++k) {
-      const double ab = ws.alpha[k] - ws.beta[k], be = ws.beta[k];
-      const double x = ws.ux[k], y = ws.uy[k], z = ws.uz[k];
-      const double xx = be + ab * x * x, yy = be + ab * y * y, zz = be + ab * z * z;
-      const double xy = ab * x * y, xz = ab * x * z, yz = ab * y * z;
-      for (int node : {m.spring_i[k], m.spring_j[k]}) {
-        Mat3& D = ws.diag_inv[node];
-        D(0, 0) += xx;
-        D(1, 1) += yy;
-        D(2, 2) += zz;
-        D(0, 1) += xy;
-        D(0, 2) += xz;
-        D(1, 2) += yz;
-      }
-    }
-    for (int i = 0; i < nn; ++i) {
-      Mat3& D = ws.diag_inv[i];
-      D(1, 0) = D(0, 1);
-      D(2, 0) = D(0, 2);
-      D(2, 1) = D(1, 2);
-    }
-    // Fixed axes: identity rows and columns, then projected out again.
-    for (int i = 0; i < nn; ++i) {
-      const Mat3 P = m.free_axes[i].asDiagonal();
-      const Mat3 D = P * ws.diag_inv[i] * P + (Mat3::Identity() - P);
-      ws.diag_inv[i] = P * D.inverse() * P;
-    }
-
-    // PCG from dx = 0.
-    double rz = 0, bnorm2 = 0;
-    for (int i = 0; i < nn; ++i) {
-      ws.dx[i].setZero();
-      ws.r[i] = ws.rhs[i];
-      ws.z[i] = ws.diag_inv[i] * ws.r[i];
-      ws.p[i] = ws.z[i];
-      rz += ws.r[i].dot(ws.z[i]);
-      bnorm2 += ws.r[i].squaredNorm();
-    }
-    const double tol2 = m.options.cg_tolerance * m.options.cg_tolerance * bnorm2;
-    for (int cg = 0; cg < m.options.cg_iterations && bnorm2 > 0; ++cg) {
-      apply_system(m, ws, ws.p, ws.ap);
-      double pap = 0;
-      for (int i = 0; i < nn; ++i) pap += ws.p[i].dot(ws.ap[i]);
-      if (!(pap > 0)) break;
-      const double alpha = rz / pap;
-      double rr = 0, rz_new = 0;
-      for (int i = 0; i < nn; ++i) {
-        ws.dx[i] += alpha * ws.p[i];
-        ws.r[i] -= alpha * ws.ap[i];
-        rr += ws.r[i].squaredNorm();
-      }
-      ++s.counters.cg_iterations;
-      if (rr <= tol2) break;
-      for (int i = 0; i < nn; ++i) {
-        ws.z[i] = ws.diag_inv[i] * ws.r[i];
-        rz_new += ws.r[i].dot(ws.z[i]);
-      }
-      const double beta = rz_new / rz;
-      rz = rz_new;
-      for (int i = 0; i < nn; ++i) ws.p[i] = ws.z[i] + beta * ws.p[i];
-    }
-    // Line search: never make a spring shorter than its hard-stop length (unless it was already
-    // and the step does not shorten it further).
-    double step_len = 1.0;
-    for (int tries = 0; tries < 12; ++tries) {
-      if (count_blocked(ns, s.x.front().data(), ws.dx.front().data(), step_len,
-                        m.spring_i.data(), m.spring_j.data(), ws.ux.data(), ws.uy.data(),
-                        ws.uz.data(), ws.min_length.data(), ws.length.data()) == 0)
-        break;
-      step_len *= 0.5;
-    }
-    for (int i = 0; i < nn; ++i) s.x[i] += step_len * ws.dx[i];
-  }
-  for (int i = 0; i < nn; ++i) s.v[i] = ((s.x[i] - ws.x0[i]) / h).cwiseProduct(m.free_axes[i]);
 }
 
 bool state_ok(const Model& m, State& s) {
@@ -806,9 +622,16 @@ Workspace::Workspace(const Model& m) {
   }
   chunk_awake.assign(chunks.size(), 1);
   active_scale = m.force_scale;
-  diag_inv.assign(nn, Mat3::Zero());
   contact_n.assign(nn, Vec3::Zero());
-  for (auto* v : {&x0, &v0, &rhs, &r, &z, &p, &ap, &dx, &good_x, &good_v}) v->assign(nn, Vec3::Zero());
+  contact_nodes.assign(nn, 0);
+  for (auto* v : {&x0, &v0, &good_x, &good_v}) v->assign(nn, Vec3::Zero());
+  sys_mass.assign(nn, 0.0);
+  sys_free.assign(3 * nn, 0.0);
+  for (size_t i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) sys_free[c * nn + i] = m.free_axes[i][c];
+  for (auto* v : {&sys_diag, &sys_pre}) v->assign(6 * nn, 0.0);
+  for (auto* v : {&sys_rhs, &sys_r, &sys_z, &sys_p, &sys_ap, &sys_dx}) v->assign(3 * nn, 0.0);
+  sys_chunk.assign(6 * kChunkSprings, 0.0);
   good_maxwell.assign(ns, 0);
   // Active region: everything awake until the first tick chooses.
   awake.assign(nn, 1);
@@ -1168,12 +991,12 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
     std::copy(s.v.begin(), s.v.end(), ws.good_v.begin());
   }
   if (ws.has_maxwell) std::copy(s.maxwell.begin(), s.maxwell.end(), ws.good_maxwell.begin());
-  const double h = h_of(m);
+  const double h = detail::substep_of(m);
   for (int sub = 0; sub < m.options.substeps; ++sub) {
     switch (m.options.integrator) {
       case Integrator::kSymplecticEuler: integrate_explicit(m, s, ws, true); break;
       case Integrator::kExplicitEuler: integrate_explicit(m, s, ws, false); break;
-      case Integrator::kImplicitEuler: integrate_implicit(m, s, ws); break;
+      case Integrator::kImplicitEuler: detail::integrate_implicit(m, s, ws); break;
     }
     hard_stop(m, s, ws);
     relax_maxwell(m, s, h);
@@ -1196,5 +1019,15 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
   ++s.counters.rollbacks;
   return StepStatus::kRolledBack;
 }
+
+namespace detail {
+
+void evaluate_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
+  forces_impl(m, s, ws, with_jacobian);
+}
+
+void apply_hard_stop(const Model& m, State& s, Workspace& ws) { hard_stop(m, s, ws); }
+
+}  // namespace detail
 
 }  // namespace conica

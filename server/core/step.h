@@ -91,11 +91,18 @@ struct Workspace {
   // Smallest length - min_length over springs at the last geometry (m): while no node has moved
   // by more than half of it, no spring can be short, and the hard-stop pass is skipped.
   double slack = -1;
-  // Implicit solver.
+  // Implicit solver (implicit.cc). Node vectors named sys_* are component-major: entry c n + i
+  // is component c of node i; sys_diag and sys_pre hold six such entries (00 11 22 01 02 12).
   std::vector<double> alpha, beta;                // (num_springs) system coefficients
-  std::vector<Mat3> diag_inv;                     // (num_nodes) block-Jacobi preconditioner
   std::vector<Vec3> contact_n;                    // (num_nodes) contact normal * sqrt(h^2 k)
-  std::vector<Vec3> x0, v0, rhs, r, z, p, ap, dx; // (num_nodes)
+  std::vector<int> contact_nodes;                 // nodes with a contact normal, first ones used
+  int num_contact_nodes = 0;
+  std::vector<Vec3> x0, v0;                       // (num_nodes) state at the step's start
+  std::vector<double> sys_mass;                   // (num_nodes) kg, m (1 + h mu)
+  std::vector<double> sys_free;                   // (3 num_nodes) 1 on free axes, 0 on fixed
+  std::vector<double> sys_diag, sys_pre;          // (6 num_nodes) diagonal blocks, inverses
+  std::vector<double> sys_rhs, sys_r, sys_z, sys_p, sys_ap, sys_dx;  // (3 num_nodes) PCG
+  std::vector<double> sys_chunk;                  // (6 kChunkSprings) a chunk's products/blocks
   // Active region.
   std::vector<std::uint8_t> awake, wake;          // (num_nodes)
   std::vector<int> active;                        // (num_springs) springs with an awake end

@@ -1,0 +1,399 @@
+// Backward Euler. Newton on  M (x1 - x0 - h v0) = h^2 f(x1, (x1 - x0) / h); each iteration solves
+//   A dx = h^2 f - M (x1 - x0 - h v0),   A = M (1 + h mu) + sum_s [alpha d d^T + beta (I - d d^T)]
+//                                            + contact,
+// alpha = h^2 k_ax + h a b^2 c, beta = h^2 max(0, T / l) (step.h), restricted to free axes, by a
+// matrix-free conjugate gradient with a block-Jacobi (3 x 3 per node) preconditioner and fixed
+// budgets, then takes the longest step (1, 1/2, ...) that makes no spring shorter than its
+// hard-stop length.
+//
+// Node vectors are component-major: entry c n + i is component c of node i. For springs in runs
+// (lattices, step.h) the product and the preconditioner's assembly then read and write each run's
+// nodes i + t and j + t as contiguous streams, chunk by chunk, like the force pass; other meshes
+// gather and scatter spring by spring.
+#include <algorithm>
+#include <cmath>
+
+#include "core/step_detail.h"
+
+namespace conica::detail {
+namespace {
+
+// w = p_j - p_i for the springs of a run: pi, pj point at the run's first node on each side of
+// component-major p (n nodes per component, `stride` apart).
+[[gnu::noinline]] void run_differences(int n, int stride, const double* __restrict pi,
+                                       const double* __restrict pj, double* __restrict wx,
+                                       double* __restrict wy, double* __restrict wz) {
+  for (int t = 0; t < n; ++t) {
+    wx[t] = pj[t] - pi[t];
+    wy[t] = pj[stride + t] - pi[stride + t];
+    wz[t] = pj[2 * stride + t] - pi[2 * stride + t];
+  }
+}
+
+// Springs not in runs: w = p_j - p_i gathered spring by spring.
+[[gnu::noinline]] void gather_differences(int ns, int stride, const double* __restrict p,
+                                          const int* __restrict si, const int* __restrict sj,
+                                          double* __restrict wx, double* __restrict wy,
+                                          double* __restrict wz) {
+  for (int k = 0; k < ns; ++k) {
+    const int i = si[k], j = sj[k];
+    wx[k] = p[j] - p[i];
+    wy[k] = p[stride + j] - p[stride + i];
+    wz[k] = p[2 * stride + j] - p[2 * stride + i];
+  }
+}
+
+// In place: w <- beta w + (alpha - beta)(d.w) d, each spring's block times its w.
+[[gnu::noinline]] void spring_blocks_times(int n, const double* __restrict ux,
+                                           const double* __restrict uy,
+                                           const double* __restrict uz,
+                                           const double* __restrict alpha,
+                                           const double* __restrict beta, double* __restrict wx,
+                                           double* __restrict wy, double* __restrict wz) {
+  for (int t = 0; t < n; ++t) {
+    const double c = (alpha[t] - beta[t]) * (ux[t] * wx[t] + uy[t] * wy[t] + uz[t] * wz[t]);
+    wx[t] = beta[t] * wx[t] + c * ux[t];
+    wy[t] = beta[t] * wy[t] + c * uy[t];
+    wz[t] = beta[t] * wz[t] + c * uz[t];
+  }
+}
+
+// y += sign t over a run's nodes on one side (y at the run's first node on that side).
+[[gnu::noinline]] void add_run(int n, int stride, double sign, const double* __restrict tx,
+                               const double* __restrict ty, const double* __restrict tz,
+                               double* __restrict y) {
+  for (int t = 0; t < n; ++t) {
+    y[t] += sign * tx[t];
+    y[stride + t] += sign * ty[t];
+    y[2 * stride + t] += sign * tz[t];
+  }
+}
+
+// y_i -= t, y_j += t for a run whose two node ranges do not overlap.
+[[gnu::noinline]] void add_run_pair(int n, int stride, const double* __restrict tx,
+                                    const double* __restrict ty, const double* __restrict tz,
+                                    double* __restrict yi, double* __restrict yj) {
+  for (int t = 0; t < n; ++t) {
+    yi[t] -= tx[t];
+    yi[stride + t] -= ty[t];
+    yi[2 * stride + t] -= tz[t];
+    yj[t] += tx[t];
+    yj[stride + t] += ty[t];
+    yj[2 * stride + t] += tz[t];
+  }
+}
+
+// The six entries (00, 11, 22, 01, 02, 12) of every spring's block beta I + (alpha - beta) d d^T,
+// entry e of spring t at b[e * ldb + t].
+[[gnu::noinline]] void block_entries(int n, const double* __restrict ux,
+                                     const double* __restrict uy, const double* __restrict uz,
+                                     const double* __restrict alpha,
+                                     const double* __restrict beta, int ldb,
+                                     double* __restrict b) {
+  for (int t = 0; t < n; ++t) {
+    const double ab = alpha[t] - beta[t], be = beta[t];
+    const double x = ux[t], y = uy[t], z = uz[t];
+    b[t] = be + ab * x * x;
+    b[ldb + t] = be + ab * y * y;
+    b[2 * ldb + t] = be + ab * z * z;
+    b[3 * ldb + t] = ab * x * y;
+    b[4 * ldb + t] = ab * x * z;
+    b[5 * ldb + t] = ab * y * z;
+  }
+}
+
+// D += b over a run's nodes on one side (six component-major entries, `stride` apart).
+[[gnu::noinline]] void add_entries(int n, int stride, const double* __restrict b, int ldb,
+                                   double* __restrict d) {
+  for (int e = 0; e < 6; ++e)
+    for (int t = 0; t < n; ++t) d[e * stride + t] += b[e * ldb + t];
+}
+
+// Pre = P inv(P D P + I - P) P per node (P: the free-axis mask), from the six entries of D.
+[[gnu::noinline]] void invert_blocks(int nn, const double* __restrict d,
+                                     const double* __restrict free, double* __restrict pre) {
+  for (int i = 0; i < nn; ++i) {
+    const double fa = free[i], fb = free[nn + i], fc = free[2 * nn + i];
+    const double a00 = fa * d[i] + (1 - fa), a11 = fb * d[nn + i] + (1 - fb);
+    const double a22 = fc * d[2 * nn + i] + (1 - fc);
+    const double a01 = fa * fb * d[3 * nn + i], a02 = fa * fc * d[4 * nn + i];
+    const double a12 = fb * fc * d[5 * nn + i];
+    const double c00 = a11 * a22 - a12 * a12, c01 = a02 * a12 - a01 * a22;
+    const double c02 = a01 * a12 - a02 * a11, c11 = a00 * a22 - a02 * a02;
+    const double c12 = a01 * a02 - a00 * a12, c22 = a00 * a11 - a01 * a01;
+    const double det = a00 * c00 + a01 * c01 + a02 * c02;
+    const double inv = det > 0 ? 1.0 / det : 0.0;  // D is positive definite; 0: no preconditioning
+    pre[i] = fa * c00 * inv;
+    pre[nn + i] = fb * c11 * inv;
+    pre[2 * nn + i] = fc * c22 * inv;
+    pre[3 * nn + i] = fa * fb * c01 * inv;
+    pre[4 * nn + i] = fa * fc * c02 * inv;
+    pre[5 * nn + i] = fb * fc * c12 * inv;
+  }
+}
+
+// z = Pre r per node; returns r.z.
+[[gnu::noinline]] double precondition(int nn, const double* __restrict pre,
+                                      const double* __restrict r, double* __restrict z) {
+  double rz = 0;
+  for (int i = 0; i < nn; ++i) {
+    const double x = r[i], y = r[nn + i], w = r[2 * nn + i];
+    const double zx = pre[i] * x + pre[3 * nn + i] * y + pre[4 * nn + i] * w;
+    const double zy = pre[3 * nn + i] * x + pre[nn + i] * y + pre[5 * nn + i] * w;
+    const double zz = pre[4 * nn + i] * x + pre[5 * nn + i] * y + pre[2 * nn + i] * w;
+    z[i] = zx;
+    z[nn + i] = zy;
+    z[2 * nn + i] = zz;
+    rz += x * zx + y * zy + w * zz;
+  }
+  return rz;
+}
+
+double dot(int n, const double* __restrict a, const double* __restrict b) {
+  double s = 0;
+  for (int k = 0; k < n; ++k) s += a[k] * b[k];
+  return s;
+}
+
+// Springs that x + t dx would make shorter than their hard-stop length (measured along their
+// current direction, so an inversion counts) and than they are now; x and dx component-major.
+[[gnu::noinline]] int count_blocked(int ns, int nn, const double* __restrict px,
+                                    const double* __restrict py, const double* __restrict pz,
+                                    const double* __restrict dx, double t,
+                                    const int* __restrict si, const int* __restrict sj,
+                                    const double* __restrict ux, const double* __restrict uy,
+                                    const double* __restrict uz, const double* __restrict lmin,
+                                    const double* __restrict len) {
+  int blocked = 0;
+  for (int k = 0; k < ns; ++k) {
+    const int i = si[k], j = sj[k];
+    const double ex = px[j] - px[i] + t * (dx[j] - dx[i]);
+    const double ey = py[j] - py[i] + t * (dx[nn + j] - dx[nn + i]);
+    const double ez = pz[j] - pz[i] + t * (dx[2 * nn + j] - dx[2 * nn + i]);
+    const double l = ex * ux[k] + ey * uy[k] + ez * uz[k];
+    blocked += (l < lmin[k]) & (l < len[k]);
+  }
+  return blocked;
+}
+
+// Largest squared node displacement of component-major dx.
+[[gnu::noinline]] double max_node_motion2(int nn, const double* __restrict dx) {
+  double m = 0;
+  for (int i = 0; i < nn; ++i) {
+    const double x = dx[i], y = dx[nn + i], z = dx[2 * nn + i];
+    m = std::max(m, x * x + y * y + z * z);
+  }
+  return m;
+}
+
+// y = A p on free axes (component-major).
+void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
+  const int nn = m.num_nodes();
+  const double* __restrict sm = ws.sys_mass.data();
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < nn; ++i) y[c * nn + i] = sm[i] * p[c * nn + i];
+  for (int q = 0; q < ws.num_contact_nodes; ++q) {
+    const int i = ws.contact_nodes[q];
+    const Vec3& cn = ws.contact_n[i];
+    const double s = cn.x() * p[i] + cn.y() * p[nn + i] + cn.z() * p[2 * nn + i];
+    y[i] += s * cn.x();
+    y[nn + i] += s * cn.y();
+    y[2 * nn + i] += s * cn.z();
+  }
+  double* const w = ws.sys_chunk.data();
+  constexpr int kC = Workspace::kChunkSprings;
+  if (ws.runs.empty()) {
+    // Spring by spring, kC at a time so that the products stay in L1 between the passes.
+    const int ns = m.num_springs();
+    for (int k0 = 0; k0 < ns; k0 += kC) {
+      const int n = std::min(kC, ns - k0);
+      gather_differences(n, nn, p, m.spring_i.data() + k0, m.spring_j.data() + k0, w, w + kC,
+                         w + 2 * kC);
+      spring_blocks_times(n, ws.ux.data() + k0, ws.uy.data() + k0, ws.uz.data() + k0,
+                          ws.alpha.data() + k0, ws.beta.data() + k0, w, w + kC, w + 2 * kC);
+      for (int t = 0; t < n; ++t) {
+        const int i = m.spring_i[k0 + t], j = m.spring_j[k0 + t];
+        for (int c = 0; c < 3; ++c) {
+          y[c * nn + i] -= w[c * kC + t];
+          y[c * nn + j] += w[c * kC + t];
+        }
+      }
+    }
+  } else {
+    for (const Workspace::Chunk& ch : ws.chunks) {
+      for (int q = ch.first_run; q < ch.last_run; ++q) {
+        const Workspace::Run& r = ws.runs[q];
+        const int t = r.k - ch.k0;
+        run_differences(r.n, nn, p + r.i, p + r.j, w + t, w + kC + t, w + 2 * kC + t);
+      }
+      spring_blocks_times(ch.k1 - ch.k0, ws.ux.data() + ch.k0, ws.uy.data() + ch.k0,
+                          ws.uz.data() + ch.k0, ws.alpha.data() + ch.k0, ws.beta.data() + ch.k0,
+                          w, w + kC, w + 2 * kC);
+      for (int q = ch.first_run; q < ch.last_run; ++q) {
+        const Workspace::Run& r = ws.runs[q];
+        const int t = r.k - ch.k0;
+        if (r.j - r.i >= r.n) {
+          add_run_pair(r.n, nn, w + t, w + kC + t, w + 2 * kC + t, y + r.i, y + r.j);
+        } else {
+          add_run(r.n, nn, -1.0, w + t, w + kC + t, w + 2 * kC + t, y + r.i);
+          add_run(r.n, nn, 1.0, w + t, w + kC + t, w + 2 * kC + t, y + r.j);
+        }
+      }
+    }
+  }
+  const double* __restrict f = ws.sys_free.data();
+  for (int k = 0; k < 3 * nn; ++k) y[k] *= f[k];
+}
+
+// The block-Jacobi preconditioner: inverse of every node's 3 x 3 diagonal block of A.
+void build_preconditioner(const Model& m, Workspace& ws) {
+  const int nn = m.num_nodes();
+  double* __restrict d = ws.sys_diag.data();
+  const double* __restrict sm = ws.sys_mass.data();
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < nn; ++i) {
+      d[c * nn + i] = sm[i];
+      d[(3 + c) * nn + i] = 0;
+    }
+  for (int q = 0; q < ws.num_contact_nodes; ++q) {
+    const int i = ws.contact_nodes[q];
+    const Vec3& cn = ws.contact_n[i];
+    d[i] += cn.x() * cn.x();
+    d[nn + i] += cn.y() * cn.y();
+    d[2 * nn + i] += cn.z() * cn.z();
+    d[3 * nn + i] += cn.x() * cn.y();
+    d[4 * nn + i] += cn.x() * cn.z();
+    d[5 * nn + i] += cn.y() * cn.z();
+  }
+  double* const b = ws.sys_chunk.data();
+  constexpr int kC = Workspace::kChunkSprings;
+  if (ws.runs.empty()) {
+    const int ns = m.num_springs();
+    for (int k0 = 0; k0 < ns; k0 += kC) {
+      const int n = std::min(kC, ns - k0);
+      block_entries(n, ws.ux.data() + k0, ws.uy.data() + k0, ws.uz.data() + k0,
+                    ws.alpha.data() + k0, ws.beta.data() + k0, kC, b);
+      for (int t = 0; t < n; ++t)
+        for (int node : {m.spring_i[k0 + t], m.spring_j[k0 + t]})
+          for (int e = 0; e < 6; ++e) d[e * nn + node] += b[e * kC + t];
+    }
+  } else {
+    for (const Workspace::Chunk& ch : ws.chunks) {
+      block_entries(ch.k1 - ch.k0, ws.ux.data() + ch.k0, ws.uy.data() + ch.k0,
+                    ws.uz.data() + ch.k0, ws.alpha.data() + ch.k0, ws.beta.data() + ch.k0, kC, b);
+      for (int q = ch.first_run; q < ch.last_run; ++q) {
+        const Workspace::Run& r = ws.runs[q];
+        const int t = r.k - ch.k0;
+        add_entries(r.n, nn, b + t, kC, d + r.i);
+        add_entries(r.n, nn, b + t, kC, d + r.j);
+      }
+    }
+  }
+  invert_blocks(nn, d, ws.sys_free.data(), ws.sys_pre.data());
+}
+
+// alpha and beta of every spring from the values the force pass kept (card units -> node units).
+void system_coefficients(const Model& m, Workspace& ws, double h) {
+  for (const SpringGroup& g : m.groups) {
+    const double c = g.card.damping;
+    for (int k = g.begin; k < g.end; ++k) {
+      const double a = m.force_scale[k], b = m.deflection_scale[k];
+      const double kax = std::min(a * b * ws.tangent[k], 1e300);
+      const double tension = -a * ws.load[k];
+      ws.alpha[k] = h * h * kax + h * a * b * b * c;
+      ws.beta[k] = h * h * std::max(0.0, tension / std::max(ws.length[k], 1e-300));
+    }
+  }
+}
+
+// Preconditioned CG from dx = 0 on A dx = rhs within the budget; returns the iterations taken.
+int solve(const Model& m, Workspace& ws) {
+  const int nn = m.num_nodes(), n3 = 3 * nn;
+  double* __restrict dx = ws.sys_dx.data();
+  double* __restrict r = ws.sys_r.data();
+  double* __restrict z = ws.sys_z.data();
+  double* __restrict p = ws.sys_p.data();
+  double* __restrict ap = ws.sys_ap.data();
+  const double* __restrict rhs = ws.sys_rhs.data();
+  std::fill(dx, dx + n3, 0.0);
+  std::copy(rhs, rhs + n3, r);
+  double rz = precondition(nn, ws.sys_pre.data(), r, z);
+  std::copy(z, z + n3, p);
+  const double bnorm2 = dot(n3, r, r);
+  const double tol2 = m.options.cg_tolerance * m.options.cg_tolerance * bnorm2;
+  int it = 0;
+  for (; it < m.options.cg_iterations && bnorm2 > 0; ++it) {
+    apply_system(m, ws, p, ap);
+    const double pap = dot(n3, p, ap);
+    if (!(pap > 0)) break;
+    const double step = rz / pap;
+    double rr = 0;
+    for (int k = 0; k < n3; ++k) {
+      dx[k] += step * p[k];
+      r[k] -= step * ap[k];
+      rr += r[k] * r[k];
+    }
+    if (rr <= tol2) {
+      ++it;
+      break;
+    }
+    const double rz_new = precondition(nn, ws.sys_pre.data(), r, z);
+    const double beta = rz_new / rz;
+    rz = rz_new;
+    for (int k = 0; k < n3; ++k) p[k] = z[k] + beta * p[k];
+  }
+  return it;
+}
+
+}  // namespace
+
+void integrate_implicit(const Model& m, State& s, Workspace& ws) {
+  const double h = substep_of(m);
+  const int nn = m.num_nodes(), ns = m.num_springs();
+  for (int i = 0; i < nn; ++i) {
+    ws.x0[i] = s.x[i];
+    ws.v0[i] = s.v[i];
+    s.x[i] += h * s.v[i].cwiseProduct(m.free_axes[i]);  // predictor x1 = x0 + h v0
+  }
+  apply_hard_stop(m, s, ws);  // the predictor must not cross solid height either
+  const double mfac = 1.0 + h * m.options.mass_damping;
+  for (int i = 0; i < nn; ++i) ws.sys_mass[i] = m.mass[i] * mfac;
+
+  for (int it = 0; it < m.options.newton_iterations; ++it) {
+    for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.x0[i]) / h;
+    evaluate_forces(m, s, ws, true);
+    // rhs = -h^2 R = h^2 f - M (x1 - x0 - h v0), on free axes.
+    for (int i = 0; i < nn; ++i) {
+      const Vec3 res =
+          h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.x0[i] - h * ws.v0[i]);
+      for (int c = 0; c < 3; ++c) ws.sys_rhs[c * nn + i] = res[c] * ws.sys_free[c * nn + i];
+    }
+    ws.num_contact_nodes = 0;
+    for (int i = 0; i < nn; ++i)
+      if (ws.contact_n[i].squaredNorm() > 0) ws.contact_nodes[ws.num_contact_nodes++] = i;
+    system_coefficients(m, ws, h);
+    build_preconditioner(m, ws);
+    s.counters.cg_iterations += solve(m, ws);
+
+    // Line search: never make a spring shorter than its hard-stop length (unless it was already
+    // and the step does not shorten it further). Measured along its direction, a spring's length
+    // changes by at most the motion of its two ends: a step that moves no node by half the
+    // smallest room to the hard stop (at these positions, from the force pass) needs no test.
+    const double* dx = ws.sys_dx.data();
+    double step_len = 1.0;
+    if (!(ws.slack > 2 * std::sqrt(max_node_motion2(nn, dx)))) {
+      for (int tries = 0; tries < 12; ++tries) {
+        if (count_blocked(ns, nn, ws.px.data(), ws.py.data(), ws.pz.data(), dx, step_len,
+                          m.spring_i.data(), m.spring_j.data(), ws.ux.data(), ws.uy.data(),
+                          ws.uz.data(), ws.min_length.data(), ws.length.data()) == 0)
+          break;
+        step_len *= 0.5;
+      }
+    }
+    for (int i = 0; i < nn; ++i)
+      s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
+  }
+  for (int i = 0; i < nn; ++i) s.v[i] = ((s.x[i] - ws.x0[i]) / h).cwiseProduct(m.free_axes[i]);
+}
+
+}  // namespace conica::detail
