@@ -117,6 +117,8 @@ void BM_ImplicitBudget(benchmark::State& state) {
 
 BENCHMARK(BM_Step)->Apply(Args)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ImplicitBudget)
+    ->Args({1, 2})
+    ->Args({1, 3})
     ->Args({1, 5})
     ->Args({1, 10})
     ->Args({1, 20})
