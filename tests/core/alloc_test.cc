@@ -8,6 +8,7 @@
 
 #include "core/body.h"
 #include "core/step.h"
+#include "tissue_bar.h"
 
 namespace {
 std::atomic<long> g_allocations{0};
@@ -27,6 +28,16 @@ void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 namespace conica {
 namespace {
+
+// Operator new calls made while f runs.
+template <class F>
+long AllocationsDuring(F&& f) {
+  g_allocations = 0;
+  g_counting = true;
+  f();
+  g_counting = false;
+  return g_allocations.load();
+}
 
 TEST(AllocationTest, StepAllocatesNothing) {
   for (Integrator integ : {Integrator::kSymplecticEuler, Integrator::kExplicitEuler,
@@ -62,64 +73,43 @@ TEST(AllocationTest, StepAllocatesNothing) {
     Workspace ws(m);
     set_probe(s, 0, Vec3(0.02, 0.02, 0.023));
     for (int i = 0; i < 20; ++i) step(m, s, ws);  // warm up
-    g_allocations = 0;
-    g_counting = true;
     int contact_steps = 0;
-    for (int i = 0; i < 100; ++i) {
-      set_probe(s, 0, Vec3(0.02, 0.02, 0.023 - 1e-5 * i));
-      step(m, s, ws);
-      contact_steps += s.probes[0].contacts > 0;
-    }
-    compute_forces(m, s, ws);
-    g_counting = false;
-    EXPECT_EQ(g_allocations.load(), 0) << integrator_name(integ);
+    const long allocations = AllocationsDuring([&] {
+      for (int i = 0; i < 100; ++i) {
+        set_probe(s, 0, Vec3(0.02, 0.02, 0.023 - 1e-5 * i));
+        step(m, s, ws);
+        contact_steps += s.probes[0].contacts > 0;
+      }
+      compute_forces(m, s, ws);
+    });
+    EXPECT_EQ(allocations, 0) << integrator_name(integ);
     EXPECT_GT(contact_steps, 0) << integrator_name(integ);  // the contact stage did run
     EXPECT_GT(s.planes[0].contacts, 0);
     // The check itself works: a vector growing while counting is seen.
-    g_allocations = 0;
-    g_counting = true;
-    std::vector<double> grow(100);
-    g_counting = false;
-    EXPECT_GT(g_allocations.load(), 0);
+    EXPECT_GT(AllocationsDuring([] { std::vector<double> grow(100); }), 0);
   }
 }
 
 TEST(AllocationTest, ActiveRegionStepAllocatesNothing) {
   // Multi-rate far field: far steps, region rebuilds as the probe moves and presses, frozen too.
   for (int far_every : {0, 3, -1}) {
-    BodySpec b;
-    b.mesh = make_box_lattice(Vec3(0.12, 0.03, 0.02), {12, 3, 2});
-    b.density = 1000;
-    SpringCard c;
-    c.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};
-    c.stiffness_cap = 20;
-    c.damping = 0.01;
-    b.groups.push_back({"tissue", c, kAllFamilies, {}, Vec3::Zero(), 10});
-    FixedSelector base;
-    base.kind = FixedSelector::Kind::kPlane;
-    b.fixed.push_back(base);
-    b.options.mass_damping = 5;
-    b.options.active_region = true;
-    b.options.active_tolerance = 2e-4;
-    b.options.active_far_every = far_every;
-    b.probes.push_back(ProbeSpec{0.006, 0});
+    const BodySpec b = TissueBar({12, 3, 2}, true, 2e-4, far_every);
     Model m;
     ASSERT_EQ(build_model(b, &m), "");
     State s = make_state(m);
     Workspace ws(m);
     set_probe(s, 0, Vec3(0.02, 0.015, 0.025));
     for (int i = 0; i < 5; ++i) step(m, s, ws);  // warm up
-    g_allocations = 0;
-    g_counting = true;
     std::uint64_t awake_min = ~0ull, awake_max = 0;
-    for (int i = 0; i < 400; ++i) {
-      set_probe(s, 0, Vec3(0.02 + 2e-4 * i, 0.015, 0.025 - 1e-5 * std::min(i, 200)));
-      step(m, s, ws);
-      awake_min = std::min(awake_min, s.counters.awake_nodes);
-      awake_max = std::max(awake_max, s.counters.awake_nodes);
-    }
-    g_counting = false;
-    EXPECT_EQ(g_allocations.load(), 0) << "far_every " << far_every;
+    const long allocations = AllocationsDuring([&] {
+      for (int i = 0; i < 400; ++i) {
+        set_probe(s, 0, Vec3(0.02 + 2e-4 * i, 0.015, 0.025 - 1e-5 * std::min(i, 200)));
+        step(m, s, ws);
+        awake_min = std::min(awake_min, s.counters.awake_nodes);
+        awake_max = std::max(awake_max, s.counters.awake_nodes);
+      }
+    });
+    EXPECT_EQ(allocations, 0) << "far_every " << far_every;
     EXPECT_LT(awake_max, static_cast<std::uint64_t>(m.num_nodes()));
     EXPECT_NE(awake_min, awake_max);  // the region did change while counting
     EXPECT_EQ(s.counters.rollbacks, 0u);
