@@ -145,30 +145,6 @@ Outcome press(const Model& m, double depth, double ramp, bool teleport, double s
   return o;
 }
 
-// Drives the top face down to `strain` in `ramp` seconds and holds: every vertical spring goes deep
-// into its nonlinear phase towards solid height. Records the largest top-face force.
-Outcome crush(const Model& m, double strain, double ramp, double seconds) {
-  State s = make_state(m);
-  Workspace ws(m);
-  Outcome o;
-  const long steps = std::lround(seconds / m.options.dt);
-  for (long k = 0; k < steps; ++k) {
-    const double z = 0.02 * (1 - strain * std::min(1.0, k * m.options.dt / ramp));
-    for (int i = 0; i < m.num_nodes(); ++i)
-      if (std::abs(m.rest[i].z() - 0.02) < 1e-9) s.x[i].z() = z;
-    step(m, s, ws);
-    compute_forces(m, s, ws);
-    double f = 0;
-    for (int i = 0; i < m.num_nodes(); ++i)
-      if (std::abs(m.rest[i].z() - 0.02) < 1e-9) f += ws.force[i].z();
-    o.max_force = std::max(o.max_force, std::abs(f));
-    for (const Vec3& x : s.x) o.bounded &= x.allFinite();
-  }
-  o.rollbacks = s.counters.rollbacks;
-  o.bounded &= o.rollbacks == 0 && std::isfinite(o.max_force);
-  return o;
-}
-
 // One mass on one conical spring (raw mapping, L0 = 10 mm) under a step load of `load_ratio`
 // times the solid load Ps: the spring is driven into solid height, where the exact law's stiffness
 // is infinite. Records the smallest spring length as a fraction of the hard-stop length.
