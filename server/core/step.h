@@ -95,7 +95,8 @@ struct Workspace {
   // is component c of node i; sys_diag and sys_pre hold six such entries (00 11 22 01 02 12).
   std::vector<double> alpha, beta;                // (num_springs) system coefficients
   std::vector<Vec3> contact_n;                    // (num_nodes) contact normal * sqrt(h^2 k)
-  std::vector<int> contact_nodes;                 // nodes with a contact normal, first ones used
+  std::vector<int> contact_nodes;                 // (num_nodes) the first num_contact_nodes have a
+                                                  // contact normal
   int num_contact_nodes = 0;
   std::vector<Vec3> x0, v0;                       // (num_nodes) state at the step's start
   std::vector<double> sys_mass;                   // (num_nodes) kg, m (1 + h mu)
