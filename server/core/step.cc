@@ -641,11 +641,12 @@ Workspace::Workspace(const Model& m) {
   for (size_t g = 0; g < m.groups.size(); ++g)
     for (int k = m.groups[g].begin; k < m.groups[g].end; ++k) spring_group[k] = static_cast<int>(g);
   // Network modulus E = sum(k_ax l0^2) / (6 V) (isotropic central-force network, nu = 1/4) and the
-  // mean axial stiffness per node, from the initial (linear-phase) stiffness of every spring.
+  // mean axial stiffness per node, from the stiffness of every spring at rest (K0; k_t(delta0)
+  // for a pre-compressed conical card).
   const double volume = body_volume(m);
   double kl2 = 0, ksum = 0;
   for (const SpringGroup& g : m.groups) {
-    const double k0 = g.law ? g.law->k0() : g.card.hooke_k;
+    const double k0 = g.law ? g.law->rest_stiffness() : g.card.hooke_k;
     for (int k = g.begin; k < g.end; ++k) {
       const double kax = m.force_scale[k] * m.deflection_scale[k] * k0;
       kl2 += kax * m.rest_length[k] * m.rest_length[k];
@@ -659,13 +660,14 @@ Workspace::Workspace(const Model& m) {
   {
     std::vector<double> node_k(nn, 0.0);
     for (const SpringGroup& g : m.groups) {
-      const double k0 = (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k;
+      const double k0 = (g.law ? g.law->rest_stiffness() : g.card.hooke_k) + g.card.maxwell_k;
       for (int k = g.begin; k < g.end; ++k) {
         const double kax = m.force_scale[k] * m.deflection_scale[k] * k0;
         node_k[m.spring_i[k]] += kax;
         node_k[m.spring_j[k]] += kax;
       }
-      tangent_limit.push_back(1.5 * (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k);
+      tangent_limit.push_back(1.5 * (g.law ? g.law->rest_stiffness() : g.card.hooke_k) +
+                              g.card.maxwell_k);
       has_maxwell |= g.card.maxwell_k > 0;
     }
     double omega2 = 0;
@@ -707,7 +709,7 @@ Workspace::Workspace(const Model& m) {
     for (int k = g.begin; k < g.end; ++k) {
       const double l0 = m.rest_length[k];
       double lmin = m.options.min_length_fraction * l0;
-      if (g.law) lmin = std::max(lmin, l0 - g.law->stroke() / m.deflection_scale[k]);
+      if (g.law) lmin = std::max(lmin, l0 - g.law->remaining_stroke() / m.deflection_scale[k]);
       if (!m.options.hard_stop) lmin = -std::numeric_limits<double>::infinity();
       min_length[k] = lmin;
       min_length2[k] = lmin * lmin;
@@ -772,13 +774,25 @@ bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, do
   const double r2 = u.squaredNorm(), R2 = R * R;
   if (r2 >= R2) return false;
   if (normal.squaredNorm() > 0) {
-    // Surface node: it leaves the sphere inward, along -n, by s = a + sqrt(a^2 - r^2 + R^2) with
-    // a = u.n, so the probe is always pushed out of the body, even when it has slipped between
-    // surface nodes.
+    // Surface node: pushed inward along -n by the depth s = min(a + sqrt(a^2 - r^2 + R^2),
+    // kContactDepthCap (R - r)), a = u.n: the distance it needs to leave the sphere along -n
+    // (so the probe is pushed out of the body even when it has slipped between surface nodes),
+    // capped by a multiple of its radial depth, which makes the force vanish on the sphere
+    // (continuous) with a bounded slope (see step.h).
     const double a = u.dot(normal);
     const double sq = std::sqrt(std::max(a * a - r2 + R2, 1e-12 * R2));
-    *f_node = -kc * (a + sq) * normal;
-    const Vec3 dsdu = normal + (a * normal - u) / sq;
+    const double r = std::sqrt(r2);
+    const double cap = kContactDepthCap * (R - r);
+    Vec3 dsdu;
+    double depth;
+    if (a + sq <= cap || !(r > 1e-12 * R)) {
+      depth = a + sq;
+      dsdu = normal + (a * normal - u) / sq;
+    } else {
+      depth = cap;
+      dsdu = -kContactDepthCap / r * u;
+    }
+    *f_node = -kc * depth * normal;
     *dfdc = -kc * normal * dsdu.transpose();
     *dir = normal;
   } else {

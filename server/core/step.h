@@ -14,8 +14,15 @@
 //   e_m <- delta + (e_m - delta) exp(-h / tau).
 // Contact, per node inside a sphere of radius R around c (u = x - c, r = |u|):
 //   surface node with outward normal n: it leaves the sphere inward along -n by
-//     s = a + sqrt(a^2 - r^2 + R^2), a = u.n;  f_node = -k_c s n
-//     (so the probe is pushed out of the body even after slipping between surface nodes)
+//     e = a + sqrt(a^2 - r^2 + R^2), a = u.n  (so the probe is pushed out of the body even after
+//     slipping between surface nodes);  f_node = -k_c s n with the depth
+//     s = min(e, kContactDepthCap (R - r)).
+//     The cap makes the force continuous: e alone jumps from 0 to 2a when a node enters the sphere
+//     on its far side (a > 0), and grows as sqrt(R^2 - r^2) for a node entering at the sphere's
+//     equator (a = 0), an unbounded stiffness. With the cap at 2, |ds/du| <= 1 + sqrt(3), so the
+//     force is Lipschitz in the probe position with constant (1 + sqrt(3)) k_c per node. The cap
+//     leaves a flat press untouched until the contact rim is 60 degrees from the probe's pole (e is
+//     the radial depth divided by about cos(theta) there).
 //   interior node: f_node = k_c (R - r) u / r (radially out of the sphere)
 //   probe force = -sum f_node, and its 3x3 stiffness d(probe force)/dc (nodes held) exactly.
 // The surface potential's force is not its gradient (the normal direction is fixed per node): a
@@ -146,6 +153,9 @@ enum class StepStatus { kOk, kRolledBack };
 // On NaN / Inf or a node faster than max_speed the state returns to the last good one (velocities
 // zeroed), counters record it, and the tick still advances.
 StepStatus step(const Model& model, State& state, Workspace& ws);
+
+// The surface contact depth is capped at this multiple of a node's radial depth in the sphere.
+inline constexpr double kContactDepthCap = 2.0;
 
 // Contact of one node at x (outward surface normal `normal`, zero inside the body) with a probe
 // sphere of radius R around c and penalty kc, by the law above. Returns false when the node is
