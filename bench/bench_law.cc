@@ -25,12 +25,17 @@ std::vector<double> Deflections(const ConicalLaw&, double lo, double hi, int n) 
   return x;
 }
 
-void Run(benchmark::State& state, double lo_frac, double hi_frac, int mode) {
-  const ConicalLaw law(kCard, 1e4 * ConicalLaw(kCard).k0());
+// pre: pre-compression as a fraction of the transition deflection; the spring's own deflections
+// (body deflection + delta0) cover the same ranges as without it.
+void Run(benchmark::State& state, double lo_frac, double hi_frac, int mode, double pre = 0) {
+  ConicalCard card = kCard;
+  card.precompression = pre * ConicalLaw(kCard).transition_deflection();
+  const ConicalLaw law(card, 1e4 * ConicalLaw(kCard).k0());
   const double d0 = law.transition_deflection(), d1 = law.cap_deflection();
   const int n = static_cast<int>(state.range(0));
-  const auto x = Deflections(law, lo_frac < 0 ? -d0 : lo_frac * d0 + (d1 - d0) * 0,
-                             hi_frac <= 1 ? hi_frac * d0 : d0 + (hi_frac - 1) * (d1 - d0), n);
+  auto x = Deflections(law, lo_frac < 0 ? -d0 : lo_frac * d0 + (d1 - d0) * 0,
+                       hi_frac <= 1 ? hi_frac * d0 : d0 + (hi_frac - 1) * (d1 - d0), n);
+  for (double& v : x) v -= card.precompression;
   std::vector<double> f(n), k(n);
   for (auto _ : state) {
     if (mode == 2) {
@@ -61,6 +66,10 @@ void BM_LawBatchLinear(benchmark::State& s) { Run(s, 0.0, 1.0, 2); }
 void BM_LawBatchNonlinear(benchmark::State& s) { Run(s, 1.0, 2.0, 2); }
 void BM_LawBatchMixed(benchmark::State& s) { Run(s, -1.0, 2.0, 2); }
 void BM_LawNonlinearExactNewton(benchmark::State& s) { Run(s, 1.0, 2.0, 1); }
+// Pre-compressed by half the transition deflection (the shifted instance of evaluate_batch).
+void BM_LawBatchLinearPrecompressed(benchmark::State& s) { Run(s, 0.0, 1.0, 2, 0.5); }
+void BM_LawBatchNonlinearPrecompressed(benchmark::State& s) { Run(s, 1.0, 2.0, 2, 0.5); }
+void BM_LawBatchMixedPrecompressed(benchmark::State& s) { Run(s, -1.0, 2.0, 2, 0.5); }
 
 void BM_Hooke(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));
@@ -92,4 +101,7 @@ BENCHMARK(BM_LawBatchLinear)->Arg(4096)->Arg(46620);
 BENCHMARK(BM_LawBatchNonlinear)->Arg(4096)->Arg(46620);
 BENCHMARK(BM_LawBatchMixed)->Arg(4096)->Arg(46620);
 BENCHMARK(BM_LawNonlinearExactNewton)->Arg(4096);
+BENCHMARK(BM_LawBatchLinearPrecompressed)->Arg(4096)->Arg(46620);
+BENCHMARK(BM_LawBatchNonlinearPrecompressed)->Arg(4096)->Arg(46620);
+BENCHMARK(BM_LawBatchMixedPrecompressed)->Arg(4096)->Arg(46620);
 BENCHMARK_MAIN();

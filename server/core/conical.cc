@@ -71,6 +71,12 @@ std::string validate(const ConicalCard& c) {
   if (c.L0 <= ls) {
     return "L0 must be > solid height Ls = " + fmt(ls) + " (got L0 = " + fmt(c.L0) + ")";
   }
+  if (!std::isfinite(c.precompression))
+    return "precompression must be a finite number (got " + fmt(c.precompression) + ")";
+  if (c.precompression < 0 || c.precompression >= c.L0 - ls) {
+    return "precompression must be >= 0 and < stroke S = L0 - Ls = " + fmt(c.L0 - ls) + " (got " +
+           fmt(c.precompression) + ")";
+  }
   return {};
 }
 
@@ -163,16 +169,36 @@ ConicalLaw::ConicalLaw(const ConicalCard& card, double stiffness_cap) : card_(ca
       m0 = m1;
     }
   }
+
+  // Pre-compression: the plain law's values at delta0 (validate() keeps delta0 in [0, S)).
+  d0_ = card.precompression;
+  if (d0_ != 0) {
+    const LawSample t = evaluate_plain(d0_), x = evaluate_exact_plain(d0_);
+    F0_ = t.force;
+    F0x_ = x.force;
+    k_rest_ = x.stiffness;
+    E0_ = energy_plain(d0_);
+  } else {
+    k_rest_ = K0_;
+  }
 }
 
 double ConicalLaw::deflection(double P) const {
-  if (P <= Pt_) return P / K0_;  // tension and linear phase
-  if (P >= Ps_) return S_;
-  const double rt = std::cbrt(A_ / P);
-  return c_ * P * (rt * rt * rt * rt - r1p4_) + S_ * (r2_ - rt) / (r2_ - r1_);
+  P += F0x_;
+  double delta;
+  if (P <= Pt_) {
+    delta = P / K0_;  // tension and linear phase
+  } else if (P >= Ps_) {
+    delta = S_;
+  } else {
+    const double rt = std::cbrt(A_ / P);
+    delta = c_ * P * (rt * rt * rt * rt - r1p4_) + S_ * (r2_ - rt) / (r2_ - r1_);
+  }
+  return delta - d0_;
 }
 
 double ConicalLaw::compliance(double P) const {
+  P += F0x_;
   if (P <= Pt_) return 1.0 / K0_;
   if (P >= Ps_) return 0.0;
   const double rt = std::cbrt(A_ / P);
@@ -243,6 +269,18 @@ double ConicalLaw::energy_at_radius(double rt) const {
 }
 
 LawSample ConicalLaw::evaluate_exact(double delta) const {
+  LawSample s = evaluate_exact_plain(delta + d0_);
+  s.force -= F0x_;
+  return s;
+}
+
+LawSample ConicalLaw::evaluate(double delta) const {
+  LawSample s = evaluate_plain(delta + d0_);
+  s.force -= F0_;
+  return s;
+}
+
+LawSample ConicalLaw::evaluate_exact_plain(double delta) const {
   if (delta < 0) return {K0_ * delta, K0_, Phase::kTension};
   if (delta <= dt_) return {K0_ * delta, K0_, Phase::kLinear};
   if (delta < dcap_) {
@@ -255,7 +293,7 @@ LawSample ConicalLaw::evaluate_exact(double delta) const {
   return {Pcap_ + kcap_ * (delta - dcap_), kcap_, delta > S_ ? Phase::kSolid : Phase::kNonlinear};
 }
 
-LawSample ConicalLaw::evaluate(double delta) const {
+LawSample ConicalLaw::evaluate_plain(double delta) const {
   if (delta <= dt_) return {K0_ * delta, K0_, delta < 0 ? Phase::kTension : Phase::kLinear};
   if (delta >= dcap_) {
     if (std::isinf(kcap_)) return {Ps_, kInf, Phase::kSolid};
@@ -272,11 +310,24 @@ LawSample ConicalLaw::evaluate(double delta) const {
 
 void ConicalLaw::evaluate_batch(const double* __restrict deflection, double* __restrict force,
                                 double* __restrict stiffness, int n) const {
+  // Two instances so that the plain law (delta0 = 0) keeps its loop as it was: the shifted one
+  // adds delta0 to every deflection and subtracts the preload from every force.
+  if (d0_ != 0) {
+    evaluate_batch_impl<true>(deflection, force, stiffness, n);
+  } else {
+    evaluate_batch_impl<false>(deflection, force, stiffness, n);
+  }
+}
+
+template <bool kShifted>
+void ConicalLaw::evaluate_batch_impl(const double* __restrict deflection, double* __restrict force,
+                                     double* __restrict stiffness, int n) const {
   const double* tab = table_.data();
   const NonlinearKernel kern{S_,  inv_h_, r1_, A_, c_, sqrt_cA_, tab, tab + kTableSegments,
                              tab + 2 * kTableSegments, tab + 3 * kTableSegments,
                              kTableSegments - 1};
   const double dt = dt_, dcap = dcap_, K0 = K0_, Pcap = Pcap_, kcap = kcap_, kcf = kcap_force_;
+  const double d0 = d0_, F0 = F0_;
   for (int begin = 0; begin < n; begin += kBatchChunk) {
     const int m = std::min(kBatchChunk, n - begin);
     const double* __restrict dl = deflection + begin;
@@ -284,28 +335,48 @@ void ConicalLaw::evaluate_batch(const double* __restrict deflection, double* __r
     double* __restrict k = stiffness + begin;
     // A chunk with every spring in tension or in the linear phase is a Hooke chunk.
     int nonlinear = 0;
-    for (int i = 0; i < m; ++i) nonlinear |= dl[i] > dt;
-    if (!nonlinear) {
-      for (int i = 0; i < m; ++i) {
-        f[i] = K0 * dl[i];
-        k[i] = K0;
+    if constexpr (kShifted) {
+      for (int i = 0; i < m; ++i) nonlinear |= dl[i] + d0 > dt;
+      if (!nonlinear) {
+        for (int i = 0; i < m; ++i) {
+          f[i] = K0 * (dl[i] + d0) - F0;
+          k[i] = K0;
+        }
+        continue;
       }
-      continue;
+    } else {
+      for (int i = 0; i < m; ++i) nonlinear |= dl[i] > dt;
+      if (!nonlinear) {
+        for (int i = 0; i < m; ++i) {
+          f[i] = K0 * dl[i];
+          k[i] = K0;
+        }
+        continue;
+      }
     }
     // Pass 1: the nonlinear branch for every spring, on its deflection clamped into
     // [delta_t, delta_cap]. Pass 2: select the phase. Keeping the selection out of pass 1 keeps
     // the gathers and square roots unconditional, which is what lets GCC vectorise pass 1.
-    for (int i = 0; i < m; ++i) kern(std::min(std::max(dl[i], dt), dcap), &f[i], &k[i]);
     for (int i = 0; i < m; ++i) {
-      const double x = dl[i], fn = f[i], kn = k[i];
+      const double x = kShifted ? dl[i] + d0 : dl[i];
+      kern(std::min(std::max(x, dt), dcap), &f[i], &k[i]);
+    }
+    for (int i = 0; i < m; ++i) {
+      const double x = kShifted ? dl[i] + d0 : dl[i], fn = f[i], kn = k[i];
       const bool lin = x <= dt, over = x >= dcap;
-      f[i] = lin ? K0 * x : (over ? Pcap + kcf * (x - dcap) : fn);
+      const double fx = lin ? K0 * x : (over ? Pcap + kcf * (x - dcap) : fn);
+      f[i] = kShifted ? fx - F0 : fx;
       k[i] = lin ? K0 : (over ? kcap : kn);
     }
   }
 }
 
 double ConicalLaw::energy(double delta) const {
+  if (d0_ == 0) return energy_plain(delta);
+  return energy_plain(d0_ + delta) - E0_ - F0x_ * delta;
+}
+
+double ConicalLaw::energy_plain(double delta) const {
   if (delta <= dt_) return 0.5 * K0_ * delta * delta;
   if (delta <= dcap_) return energy_at_radius(radius_from_deflection(delta));
   if (std::isinf(kcap_)) return Ecap_ + Ps_ * (delta - S_);

@@ -19,6 +19,19 @@
 //
 // Tension (delta < 0): no coil can bottom, so the spring is linear with K0 (documented choice).
 //
+// Pre-compression (card.precompression = delta0, 0 <= delta0 < S): the spring is installed in the
+// body already compressed by delta0 (a rest length L0 - delta0), its preload balanced by the body,
+// so the body feels
+//   F(delta) = P(delta0 + delta) - P(delta0),   k_t(delta) = P'(delta0 + delta),
+// zero at the body's rest shape (which stays an equilibrium) and stiffening from the start when
+// delta0 is past delta_t. delta is the body's deflection (from its rest shape); the spring's own
+// is delta0 + delta. Tension: from delta = 0 down to -delta0 the spring extends back along its law
+// (the preload is released); beyond, the spring itself is stretched and is linear with K0 as above,
+// so F(delta) = K0 (delta0 + delta) - P(delta0) there (C1 at -delta0: the plain law is linear on
+// both sides of its free length). In short, the plain law shifted by delta0 in both axes.
+// delta0 = 0 is the plain law. The accessors below (stroke, transition, cap, K0) describe the
+// spring itself, in its own deflection; the body reaches the solid height at delta = S - delta0.
+//
 // Regularisation for simulation: a fixed-step integrator cannot follow an infinite stiffness.
 // With a stiffness cap k_cap (> K0), the law is followed exactly until k_t reaches k_cap at
 // deflection delta_cap, and continues beyond it as a straight line of slope k_cap (C1, also
@@ -43,10 +56,13 @@ struct ConicalCard {
   double D2 = 0;   // largest mean coil diameter
   double L0 = 0;   // free length
   double n_a = 0;  // number of active coils
+  double precompression = 0;  // delta0: initial deflection of the installed spring (unit of
+                              // length, SI: m), 0 <= delta0 < S; 0: the plain law
 };
 
 // Returns an empty string when the card is valid, otherwise a message naming the parameter and
-// the constraint it broke (d <= 0, D1 >= D2, n_a <= 0, L0 <= solid height, NaN, ...).
+// the constraint it broke (d <= 0, D1 >= D2, n_a <= 0, L0 <= solid height, precompression < 0 or
+// >= stroke, NaN, ...).
 std::string validate(const ConicalCard& card);
 
 enum class Phase : std::uint8_t { kTension = 0, kLinear = 1, kNonlinear = 2, kSolid = 3 };
@@ -75,22 +91,36 @@ class ConicalLaw {
   double solid_load() const { return Ps_; }  // Ps = A / r1^3
   double stiffness_cap() const { return kcap_; }
   double cap_deflection() const { return dcap_; }  // where k_t reaches the cap (S if none)
+  // Pre-compression: delta0, the preload P(delta0) (what the body balances at rest; the
+  // table-based value that evaluate() subtracts), the tangent stiffness at rest k_t(delta0)
+  // (= K0 for delta0 <= delta_t) and the body's room to the solid height, S - delta0.
+  double precompression() const { return d0_; }
+  double preload() const { return F0_; }
+  double rest_stiffness() const { return k_rest_; }
+  double remaining_stroke() const { return S_ - d0_; }
 
   // Eq. (10)-(11): deflection under compressive load P >= 0 (P < 0: tension, linear).
-  // Loads above Ps return S.
+  // Loads above Ps return S. With a pre-compression: the body's deflection under the load P
+  // added to the preload, deflection(P + P(delta0)) - delta0.
   double deflection(double P) const;
-  // Tangent compliance d delta / dP at load P.
+  // Tangent compliance d delta / dP at load P (on top of the preload).
   double compliance(double P) const;
 
   // The inverse, P(delta), with tangent stiffness. Exact up to the cap: the bottoming radius is
   // found by a safeguarded Newton iteration to machine precision. Use for reference work.
+  // delta is the body's deflection: with a pre-compression the force is P(delta0 + delta) -
+  // P(delta0) and the phase that of the spring at delta0 + delta.
   LawSample evaluate_exact(double delta) const;
   // Same law from a precomputed table plus one Newton correction: relative error <= 1e-9 in force
-  // and stiffness (tests/core/conical_test.cc sweeps it, extreme tapers included).
+  // and stiffness (tests/core/conical_test.cc sweeps it, extreme tapers included). With a
+  // pre-compression it is the plain law's evaluate(delta0 + delta) minus preload() (stiffness bit
+  // for bit, force up to the rounding of that subtraction).
   LawSample evaluate(double delta) const;
 
   // evaluate() over arrays: force[i] and stiffness[i] for deflection[i], i < n; the arrays must
-  // not overlap. Bit for bit the values of evaluate() (the cap-free law returns force Ps and
+  // not overlap. Bit for bit the values of evaluate() (with a pre-compression: the stiffness bit
+  // for bit, the force within 1 ulp, the preload's subtraction being fused or not with the law's
+  // last multiplication as the compiler chooses per loop; the cap-free law returns force Ps and
   // infinite stiffness at and past the solid height). The simulation's inner loop: it works in
   // chunks of kBatchChunk springs; a chunk entirely in tension or the linear phase costs what a
   // Hooke spring costs, any other chunk runs a branch-free pass that GCC vectorises (with gathers
@@ -98,7 +128,9 @@ class ConicalLaw {
   void evaluate_batch(const double* __restrict deflection, double* __restrict force,
                       double* __restrict stiffness, int n) const;
 
-  // Strain energy, the integral of the (regularised) force from 0 to delta.
+  // Strain energy, the integral of the (regularised) force from 0 to delta. With a
+  // pre-compression: E(delta0 + delta) - E(delta0) - P(delta0) delta of the plain law (the work
+  // of the body's force, zero at rest; it loses relative precision for |delta| << delta0).
   double energy(double delta) const;
 
   // Paper's eq. (11) form in diameters with n the number of unbottomed coils: kept to check
@@ -113,6 +145,13 @@ class ConicalLaw {
   double radius_from_deflection(double delta) const;  // exact nonlinear-phase solve
   double gap_from_s(double s) const;  // r_t - r1 from s = sqrt(S - delta)
   double energy_at_radius(double rt) const;  // energy from 0 to deflection at radius rt
+  // The plain law (no pre-compression) at the spring's own deflection.
+  LawSample evaluate_plain(double delta) const;
+  LawSample evaluate_exact_plain(double delta) const;
+  double energy_plain(double delta) const;
+  template <bool kShifted>
+  void evaluate_batch_impl(const double* __restrict deflection, double* __restrict force,
+                           double* __restrict stiffness, int n) const;
 
   ConicalCard card_;
   bool telescopic_ = false;
@@ -121,6 +160,9 @@ class ConicalLaw {
   double kcap_ = std::numeric_limits<double>::infinity();
   double kcap_force_ = 0;  // slope used for the force past the cap (0 when the cap is infinite)
   double dcap_ = 0, Pcap_ = 0, rcap_ = 0, Ecap_ = 0, Et_ = 0;
+  // Pre-compression: delta0, P(delta0) from the table (evaluate, batch) and exact
+  // (evaluate_exact, energy, deflection), E(delta0), k_t(delta0).
+  double d0_ = 0, F0_ = 0, F0x_ = 0, E0_ = 0, k_rest_ = 0;
 
   // Inverse table of x = r_t - r1 over s = sqrt(S - delta) in [0, s_max], where r_t(s) is smooth
   // (it has a square-root singularity in delta at the solid height). Cubic Hermite per segment,

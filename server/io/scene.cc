@@ -64,7 +64,7 @@ std::string convert_card(const v1::SpringCard& c, SpringCard* out) {
   if (c.has_conical()) {
     const auto& k = c.conical();
     card.law = LawKind::kConical;
-    card.conical = ConicalCard{k.g(), k.d(), k.d1(), k.d2(), k.l0(), k.n_a()};
+    card.conical = ConicalCard{k.g(), k.d(), k.d1(), k.d2(), k.l0(), k.n_a(), k.precompression()};
     const std::string e = validate(card.conical);
     if (!e.empty()) return e;
   } else if (c.has_hooke()) {

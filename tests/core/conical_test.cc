@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -257,6 +258,132 @@ TEST(ConicalLawTest, CompliancesAgreeWithStiffness) {
     const double delta = law.deflection(P);
     EXPECT_NEAR(law.evaluate_exact(delta).stiffness * law.compliance(P), 1.0, 1e-9);
   }
+}
+
+// Pre-compression: the body's law is the plain law moved by delta0 along both axes.
+ConicalCard Precompressed(ConicalCard c, double delta0) {
+  c.precompression = delta0;
+  return c;
+}
+
+TEST(ConicalPrecompressionTest, RejectsValuesOutsideTheStroke) {
+  const ConicalCard c = Table2Card(1.5);  // Type I, Ls = 3.354, S = 86.65
+  const double S = ConicalLaw(c).stroke();
+  EXPECT_EQ(validate(Precompressed(c, 0.0)), "");
+  EXPECT_EQ(validate(Precompressed(c, 0.999 * S)), "");
+  for (double bad : {-1e-9, S, 2 * S}) {
+    EXPECT_NE(validate(Precompressed(c, bad)).find("precompression must be >= 0 and < stroke"),
+              std::string::npos)
+        << bad;
+  }
+  EXPECT_NE(validate(Precompressed(c, NAN)).find("precompression must be a finite"),
+            std::string::npos);
+}
+
+TEST(ConicalPrecompressionTest, ShiftedLawIsThePlainLawAtDelta0PlusDeltaMinusThePreload) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (const ConicalCard& c : {Fig6Card(3), Table2Card(1.5)}) {
+    for (double cap : {std::numeric_limits<double>::infinity(), 200.0}) {
+      const ConicalLaw plain(c, cap * ConicalLaw(c).k0());
+      const double S = plain.stroke(), dt = plain.transition_deflection();
+      for (double delta0 : {0.5 * dt, dt, 0.5 * (dt + S), 0.9 * S}) {
+        const ConicalLaw law(Precompressed(c, delta0), cap * ConicalLaw(c).k0());
+        const double F0 = plain.evaluate(delta0).force;
+        EXPECT_EQ(law.preload(), F0);
+        EXPECT_EQ(law.evaluate(0.0).force, 0.0);  // at rest the body is in equilibrium
+        EXPECT_EQ(law.rest_stiffness(), plain.evaluate_exact(delta0).stiffness);
+        EXPECT_EQ(law.remaining_stroke(), S - delta0);
+        std::vector<double> x = {-2 * delta0, -delta0, 0.0, dt - delta0, S - delta0};
+        for (int i = 0; i < 400; ++i) x.push_back(-1.5 * delta0 + u(rng) * (1.1 * S + 0.5 * delta0));
+        // Exact up to the rounding of the final subtraction (the compiler may fuse it with the
+        // law's last multiplication): 1 ulp of the largest of operands and result.
+        for (double d : x) {
+          const LawSample a = law.evaluate(d), b = plain.evaluate(delta0 + d);
+          const double ulp = std::numeric_limits<double>::epsilon() *
+                             std::max({std::abs(b.force), F0, std::abs(b.force - F0)});
+          ASSERT_NEAR(a.force, b.force - F0, ulp) << "delta0 " << delta0 << ", delta " << d;
+          ASSERT_EQ(a.stiffness, b.stiffness) << "delta0 " << delta0 << ", delta " << d;
+          ASSERT_EQ(a.phase, b.phase);
+        }
+        // Against an independent inverse (bisection on the forward law delta(P) of the plain
+        // card), below the cap: force differences of the loads at delta0 + delta and delta0.
+        for (double f : {-1.2, -0.5, 0.1, 0.5, 0.9}) {
+          const double d = f * std::min(delta0, plain.cap_deflection() - delta0);
+          if (delta0 + d <= 0 || delta0 + d >= plain.cap_deflection()) continue;
+          const double ref = LoadByBisection(plain, delta0 + d) - LoadByBisection(plain, delta0);
+          EXPECT_NEAR(law.evaluate_exact(d).force, ref, 1e-9 * plain.evaluate(delta0 + d).force)
+              << "delta0 " << delta0 << ", delta " << d;
+        }
+        // Tension past -delta0: the spring itself is stretched, linear K0.
+        const double far = -delta0 - 0.3 * dt;
+        EXPECT_NEAR(law.evaluate(far).force, -F0 - plain.k0() * 0.3 * dt, 1e-12 * F0);
+        EXPECT_EQ(law.evaluate(far).stiffness, plain.k0());
+        EXPECT_EQ(law.evaluate(far).phase, Phase::kTension);
+        // Forward law: deflection(P) is the body's deflection under P on top of the preload.
+        if (delta0 + 0.3 * (S - delta0) < plain.cap_deflection()) {
+          const double d = 0.3 * (S - delta0);
+          EXPECT_NEAR(law.deflection(law.evaluate_exact(d).force), d, 1e-9 * S);
+        }
+      }
+    }
+  }
+}
+
+TEST(ConicalPrecompressionTest, BatchMatchesScalarBitForBit) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (const ConicalCard& c : {Fig6Card(3), Table2Card(1.5)}) {
+    const ConicalLaw plain(c);
+    const double S = plain.stroke(), dt = plain.transition_deflection();
+    for (double delta0 : {0.3 * dt, 0.5 * (dt + S)}) {
+      const ConicalLaw law(Precompressed(c, delta0), 50 * plain.k0());
+      std::vector<double> x;
+      for (int i = 0; i < 700; ++i) x.push_back(-delta0 - dt + u(rng) * (1.2 * S + dt));
+      for (int i = 0; i < 600; ++i) x.push_back(-delta0 + (2 * u(rng) - 1) * dt);  // linear
+      const int n = static_cast<int>(x.size());
+      std::vector<double> f(n), k(n);
+      law.evaluate_batch(x.data(), f.data(), k.data(), n);
+      // Stiffness bit for bit; force up to the rounding of the preload's subtraction (fused or
+      // not with the law's last multiplication, the compiler's choice per loop): 1 ulp.
+      for (int i = 0; i < n; ++i) {
+        const LawSample s = law.evaluate(x[i]);
+        const double ulp = std::numeric_limits<double>::epsilon() *
+                           std::max({std::abs(s.force + law.preload()), law.preload(),
+                                     std::abs(s.force)});
+        ASSERT_NEAR(f[i], s.force, ulp) << "delta = " << x[i];
+        ASSERT_EQ(k[i], s.stiffness) << "delta = " << x[i];
+      }
+    }
+  }
+}
+
+TEST(ConicalPrecompressionTest, StiffnessAndEnergyAreDerivatives) {
+  const ConicalCard c = Fig6Card(3);
+  const ConicalLaw plain(c);
+  const double S = plain.stroke(), dt = plain.transition_deflection();
+  for (double delta0 : {0.5 * dt, 0.5 * (dt + S)}) {
+    const ConicalLaw law(Precompressed(c, delta0), 300 * plain.k0());
+    EXPECT_EQ(law.energy(0.0), 0.0);
+    for (int i = 1; i < 100; ++i) {
+      const double d = -1.5 * delta0 + i * (S - 0.5 * delta0) / 100.0;
+      const double h = 1e-5;
+      const double fd = (law.evaluate(d + h).force - law.evaluate(d - h).force) / (2 * h);
+      const double k = law.evaluate(d).stiffness;
+      EXPECT_NEAR(k, fd, 1e-5 * std::max(k, 1.0)) << "delta0 " << delta0 << ", delta " << d;
+      // Energy against Simpson's rule on the force from 0 to d (independent of energy()).
+      const int N = 2000;
+      double sum = law.evaluate_exact(0).force + law.evaluate_exact(d).force;
+      for (int j = 1; j < N; ++j) sum += (j % 2 ? 4 : 2) * law.evaluate_exact(j * d / N).force;
+      const double simpson = sum * d / N / 3;
+      EXPECT_NEAR(law.energy(d), simpson, 1e-7 * std::max(std::abs(simpson), 1.0))
+          << "delta0 " << delta0 << ", delta " << d;
+    }
+  }
+  // In the nonlinear phase at rest the pre-compressed spring is stiffer than K0 from the start.
+  const ConicalLaw pre(Precompressed(c, 0.5 * (dt + S)));
+  EXPECT_GT(pre.rest_stiffness(), 1.5 * plain.k0());
+  EXPECT_GT(pre.evaluate(0.1 * dt).stiffness, pre.rest_stiffness());
 }
 
 TEST(ConicalLawTest, PhaseBoundariesAndDegenerateInputs) {

@@ -101,5 +101,29 @@ TEST(SceneTest, WrongScenesAreRefusedWithLineAndReason) {
             std::string::npos);
 }
 
+TEST(SceneTest, PrecompressionIsReadInMetresAndCheckedAgainstTheStroke) {
+  // kGood's card: Ls = sqrt((n_a d)^2 - (r2 - r1)^2) = 0, so the stroke is L0 = 10 mm.
+  auto with = [](const std::string& field) {
+    std::string s = kGood;
+    const std::string at = "n_a: 3 }";
+    s.replace(s.find(at), at.size(), "n_a: 3 " + field + " }");
+    return s;
+  };
+  auto ok = parse_scene(with("precompression: 0.004"), "s.pbtxt", kConfigs);
+  ASSERT_TRUE(ok) << ok.error();
+  EXPECT_EQ(ok.value().spec.groups.at(0).card.conical.precompression, 0.004);
+  auto plain = parse_scene(kGood, "s.pbtxt", kConfigs);
+  ASSERT_TRUE(plain) << plain.error();
+  EXPECT_EQ(plain.value().spec.groups.at(0).card.conical.precompression, 0.0);
+  for (const char* bad : {"precompression: -1e-3", "precompression: 0.01", "precompression: 0.02",
+                          "precompression: nan"}) {
+    const std::string e = ErrorOf(with(bad));
+    EXPECT_NE(e.find("s.pbtxt:5:1: group 0 (\"g\"): precompression must be"), std::string::npos)
+        << bad << ": " << e;
+  }
+  EXPECT_NE(ErrorOf(with("precompression: 0.02")).find("< stroke S = L0 - Ls = 0.00999999"),
+            std::string::npos);  // Ls rounds to about 1e-11 m here
+}
+
 }  // namespace
 }  // namespace conica::io
