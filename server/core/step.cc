@@ -244,10 +244,15 @@ void refresh_directions(const Model& m, Workspace& ws) {
   ws.directions_kept = true;
 }
 
-// Geometry, loads and forces (summed into ws.fx, fy, fz) of one chunk of springs in runs, with
-// force scales a (per spring); values kept per spring or only in the chunk buffers.
+// Geometry, loads and forces (summed into ws.fx, fy, fz, or into out[0..2] when given) of one
+// chunk of springs in runs, with force scales a (per spring); values kept per spring or only in
+// the chunk buffers.
 void chunk_forces(const Model& m, const State& s, Workspace& ws, const Workspace::Chunk& c,
-                  bool keep, const double* __restrict a, std::int64_t* slack) {
+                  bool keep, const double* __restrict a, std::int64_t* slack,
+                  double* const* out = nullptr) {
+  double* const fx = out ? out[0] : ws.fx.data();
+  double* const fy = out ? out[1] : ws.fy.data();
+  double* const fz = out ? out[2] : ws.fz.data();
   const SpringValues v = keep ? values_at(ws, c.k0)
                               : SpringValues{ws.chunk_ux.data(),     ws.chunk_uy.data(),
                                              ws.chunk_uz.data(),     ws.chunk_length.data(),
@@ -269,14 +274,13 @@ void chunk_forces(const Model& m, const State& s, Workspace& ws, const Workspace
     const Workspace::Run& r = ws.runs[q];
     const int t = r.k - c.k0;
     if (r.j - r.i >= r.n) {
-      scatter_run_pair(r.n, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t,
-                       ws.fx.data() + r.i, ws.fy.data() + r.i, ws.fz.data() + r.i,
-                       ws.fx.data() + r.j, ws.fy.data() + r.j, ws.fz.data() + r.j);
+      scatter_run_pair(r.n, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t, fx + r.i,
+                       fy + r.i, fz + r.i, fx + r.j, fy + r.j, fz + r.j);
       continue;
     }
     for (const auto& [node, sign] : {std::pair{r.i, -1.0}, std::pair{r.j, 1.0}})
-      scatter_run(r.n, sign, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t,
-                  ws.fx.data() + node, ws.fy.data() + node, ws.fz.data() + node);
+      scatter_run(r.n, sign, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t, fx + node,
+                  fy + node, fz + node);
   }
 }
 
@@ -703,6 +707,7 @@ Workspace::Workspace(const Model& m) {
   in_border.assign(nn, 0);
   slow.reserve(ns);
   impulse.assign(nn, Vec3::Zero());
+  for (auto* v : {&far_fx, &far_fy, &far_fz}) v->assign(nn, 0.0);
   slow_scale.assign(ns, 0.0);
   chunk_slow.assign(chunks.size(), 0);
   for (const SpringGroup& g : m.groups) {
@@ -907,23 +912,27 @@ void update_region(const Model& m, State& s, Workspace& ws) {
   }
 }
 
-// One symplectic Euler step of H = far_every ticks for the sleeping nodes: forces of the springs
-// between sleeping nodes and the node terms now, plus the impulse the awake springs gave over the
-// interval. Far springs out of their linear phase and far nodes behind a plane are marked to
-// wake at the next interval.
-void far_step(const Model& m, State& s, Workspace& ws) {
-  const int nn = m.num_nodes();
-  const double H = ws.far_every * m.options.dt, mu = m.options.mass_damping;
-  std::fill(ws.fx.begin(), ws.fx.end(), 0.0);
-  std::fill(ws.fy.begin(), ws.fy.end(), 0.0);
-  std::fill(ws.fz.begin(), ws.fz.end(), 0.0);
+// The far field's forces over one interval, spread over its N ticks: tick `phase` evaluates the
+// springs between sleeping nodes of chunks (or list entries) [phase C / N, (phase + 1) C / N) and
+// sums their forces into ws.far_fx, far_fy, far_fz. Sleeping nodes do not move within an interval
+// (only the far step moves them), so every share sees the same far state, and the sum equals one
+// evaluation at the interval's end: no tick pays the whole far field. Far springs out of their
+// linear phase are marked to wake at the next interval.
+void far_forces_part(const Model& m, State& s, Workspace& ws, int phase) {
+  const int N = ws.far_every;
+  ws.far_springs_evaluated = 0;
   if (!ws.runs.empty()) {
-    copy_positions(s.x, ws);
+    if (phase == 0) copy_positions(s.x, ws);  // the far state of this interval
+    const int nc = static_cast<int>(ws.chunks.size());
+    const int c0 = static_cast<int>(std::int64_t(nc) * phase / N);
+    const int c1 = static_cast<int>(std::int64_t(nc) * (phase + 1) / N);
+    double* const out[3] = {ws.far_fx.data(), ws.far_fy.data(), ws.far_fz.data()};
     std::int64_t slack = kNoRoom;
-    for (size_t c = 0; c < ws.chunks.size(); ++c) {
+    for (int c = c0; c < c1; ++c) {
       if (!ws.chunk_slow[c]) continue;
       const Workspace::Chunk& ch = ws.chunks[c];
-      chunk_forces(m, s, ws, ch, false, ws.slow_scale.data(), &slack);
+      chunk_forces(m, s, ws, ch, false, ws.slow_scale.data(), &slack, out);
+      ws.far_springs_evaluated += ch.k1 - ch.k0;
       const double limit = ws.tangent_limit[ch.group];
       int stiff = 0;  // counted branch-free: the common case (none) costs a vectorised pass
       const double* __restrict tangent = ws.chunk_tangent.data();
@@ -933,39 +942,54 @@ void far_step(const Model& m, State& s, Workspace& ws) {
         if (ws.slow_scale[k] != 0 && ws.chunk_tangent[k - ch.k0] > limit)
           ws.wake[m.spring_i[k]] = ws.wake[m.spring_j[k]] = 1;
     }
-  } else {
-    for (int k : ws.slow) {
-      const int i = m.spring_i[k], j = m.spring_j[k];
-      const Vec3 u = s.x[j] - s.x[i];
-      const double l = u.norm();
-      const Vec3 d = u / std::max(l, 1e-300);
-      const double delta = m.deflection_scale[k] * (m.rest_length[k] - l);
-      const SpringGroup& g = m.groups[ws.spring_group[k]];
-      double load = g.card.hooke_k * delta, tangent = g.card.hooke_k;
-      if (g.law) {
-        const LawSample e = g.law->evaluate(delta);
-        load = e.force;
-        tangent = e.stiffness;
-      }
-      if (g.viscous) {
-        const double ddot = -m.deflection_scale[k] * d.dot(s.v[j] - s.v[i]);
-        load += g.card.damping * ddot + g.card.maxwell_k * (delta - s.maxwell[k]);
-        tangent += g.card.maxwell_k;
-      }
-      if (tangent > ws.tangent_limit[ws.spring_group[k]]) ws.wake[i] = ws.wake[j] = 1;
-      const Vec3 f = m.force_scale[k] * load * d;
-      ws.fx[i] -= f.x();
-      ws.fy[i] -= f.y();
-      ws.fz[i] -= f.z();
-      ws.fx[j] += f.x();
-      ws.fy[j] += f.y();
-      ws.fz[j] += f.z();
-    }
+    return;
   }
+  const int ns = static_cast<int>(ws.slow.size());
+  const int q0 = static_cast<int>(std::int64_t(ns) * phase / N);
+  const int q1 = static_cast<int>(std::int64_t(ns) * (phase + 1) / N);
+  ws.far_springs_evaluated = q1 - q0;
+  for (int q = q0; q < q1; ++q) {
+    const int k = ws.slow[q];
+    const int i = m.spring_i[k], j = m.spring_j[k];
+    const Vec3 u = s.x[j] - s.x[i];
+    const double l = u.norm();
+    const Vec3 d = u / std::max(l, 1e-300);
+    const double delta = m.deflection_scale[k] * (m.rest_length[k] - l);
+    const SpringGroup& g = m.groups[ws.spring_group[k]];
+    double load = g.card.hooke_k * delta, tangent = g.card.hooke_k;
+    if (g.law) {
+      const LawSample e = g.law->evaluate(delta);
+      load = e.force;
+      tangent = e.stiffness;
+    }
+    if (g.viscous) {
+      const double ddot = -m.deflection_scale[k] * d.dot(s.v[j] - s.v[i]);
+      load += g.card.damping * ddot + g.card.maxwell_k * (delta - s.maxwell[k]);
+      tangent += g.card.maxwell_k;
+    }
+    if (tangent > ws.tangent_limit[ws.spring_group[k]]) ws.wake[i] = ws.wake[j] = 1;
+    const Vec3 f = m.force_scale[k] * load * d;
+    ws.far_fx[i] -= f.x();
+    ws.far_fy[i] -= f.y();
+    ws.far_fz[i] -= f.z();
+    ws.far_fx[j] += f.x();
+    ws.far_fy[j] += f.y();
+    ws.far_fz[j] += f.z();
+  }
+}
+
+// One symplectic Euler step of H = far_every ticks for the sleeping nodes, at the interval's last
+// tick: the far springs' forces summed over the interval (far_forces_part) and the node terms
+// now, plus the impulse the awake springs gave over the interval. The sums are cleared for the
+// next interval. Far nodes behind a plane are marked to wake at the next interval.
+void far_step(const Model& m, State& s, Workspace& ws) {
+  const int nn = m.num_nodes();
+  const double H = ws.far_every * m.options.dt, mu = m.options.mass_damping;
   for (int i = 0; i < nn; ++i) {
+    const Vec3 spring(ws.far_fx[i], ws.far_fy[i], ws.far_fz[i]);
+    ws.far_fx[i] = ws.far_fy[i] = ws.far_fz[i] = 0;
     if (ws.awake[i] || m.fixed[i] == 7) continue;
-    const Vec3 f = m.mass[i] * (m.options.gravity - mu * s.v[i]) +
-                   Vec3(ws.fx[i], ws.fy[i], ws.fz[i]);
+    const Vec3 f = m.mass[i] * (m.options.gravity - mu * s.v[i]) + spring;
     s.v[i] += ((H * f + ws.impulse[i]) * ws.far_inv_mass[i]).cwiseProduct(m.free_axes[i]);
     s.x[i] += (H * s.v[i]).cwiseProduct(m.free_axes[i]);
     ws.impulse[i].setZero();
@@ -1015,6 +1039,7 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
     hard_stop(m, s, ws);
     relax_maxwell(m, s, h);
   }
+  if (multirate) far_forces_part(m, s, ws, ws.far_phase);
   if (far_tick) far_step(m, s, ws);
   if (multirate) ws.far_phase = (ws.far_phase + 1) % ws.far_every;
   ++s.counters.steps;

@@ -49,8 +49,11 @@
 // and corners) take the far step with the larger inertia that keeps their own bound (selective
 // mass scaling; gravity and damping keep the true mass). A far spring whose tangent stiffness
 // leaves the linear phase (more than 1.5 K0), or a far node behind a plane, wakes its nodes at the
-// next interval, when the region is chosen again; between intervals only the awake side costs
-// anything: its springs, its nodes and the sleeping nodes they pull (the border).
+// next interval, when the region is chosen again. Since sleeping nodes move only at the far step,
+// the far springs' forces are evaluated in N shares, one per tick of the interval (a chunk range
+// or a slice of the far spring list each), and summed; the far step itself is then one pass over
+// the nodes. A tick costs the awake side (its springs, its nodes and the sleeping nodes they pull,
+// the border) plus about 1/N of the far springs, never a whole far step.
 //
 // Solid height: the law's stiffness cap (ConicalLaw) keeps k_t finite, and a hard stop projects
 // any spring shorter than max(l0 - S/b, min_length_fraction l0) back to that length, removing
@@ -132,6 +135,9 @@ struct Workspace {
   std::vector<int> slow;                          // springs with both ends asleep (no runs)
   std::vector<std::uint8_t> chunk_slow;           // (chunks) a spring of the chunk has both asleep
   std::vector<double> far_inv_mass;               // (num_nodes) 1/kg, inertia of a far step
+  std::vector<double> far_fx, far_fy, far_fz;     // (num_nodes) N, far springs' forces of this
+                                                  // interval, summed over its ticks
+  int far_springs_evaluated = 0;                  // springs the last tick's far share evaluated
   std::vector<double> tangent_limit;              // (groups) card units: far springs beyond wake
   bool has_maxwell = false;                       // a group has a Maxwell branch
   // Last good state for rollback.

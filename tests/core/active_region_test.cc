@@ -143,6 +143,57 @@ TEST(ActiveRegionTest, MultiRateFarFieldAgreesToOnePercentWithASmallRegion) {
   EXPECT_NEAR(moving.far_active, moving.far_full, 0.2 * moving.far_full);
 }
 
+TEST(ActiveRegionTest, FarStepIsSpreadOverItsInterval) {
+  // The far field's springs are evaluated in shares, one per tick of the interval: no tick
+  // evaluates more than about 1/N of them (one chunk of rounding), every interval evaluates each
+  // far spring exactly once, and the probe force still agrees with the full simulation to 1 %.
+  const double tol = 2e-4;
+  const Model full = Bar(false, tol);
+  const Model m = Bar(true, tol, 4);
+  State a = make_state(full), s = make_state(m);
+  Workspace wa(full), ws(m);
+  ASSERT_EQ(ws.far_every, 4);
+  const int slack = ws.runs.empty() ? 1 : Workspace::kChunkSprings;
+  int worst_share = 0, intervals = 0;
+  double fmax = 0, err = 0;
+  long in_interval = 0, last_far = 0;
+  for (int t = 0; t < 600; ++t) {
+    const Vec3 p = Press(0.08, 0.003 * std::min(1.0, t / 300.0));
+    set_probe(a, 0, p);
+    set_probe(s, 0, p);
+    step(full, a, wa);
+    step(m, s, ws);
+    fmax = std::max(fmax, a.probes[0].force.norm());
+    err = std::max(err, (a.probes[0].force - s.probes[0].force).norm());
+    // Far springs of this interval (both ends asleep; lattices: springs of chunks holding one).
+    long far = 0;
+    if (ws.runs.empty()) {
+      far = static_cast<long>(ws.slow.size());
+    } else {
+      for (size_t c = 0; c < ws.chunks.size(); ++c)
+        if (ws.chunk_slow[c]) far += ws.chunks[c].k1 - ws.chunks[c].k0;
+    }
+    ASSERT_GT(far, 0);
+    // Shares are equal ranges of chunks (or of the far spring list): at most a quarter of the
+    // springs plus one chunk.
+    EXPECT_LE(ws.far_springs_evaluated, m.num_springs() / 4 + slack) << "tick " << t;
+    last_far = far;
+    worst_share = std::max(worst_share, ws.far_springs_evaluated);
+    in_interval += ws.far_springs_evaluated;
+    if (ws.far_phase == 0) {  // an interval ended with this tick
+      EXPECT_EQ(in_interval, far) << "tick " << t;
+      in_interval = 0;
+      ++intervals;
+    }
+  }
+  std::printf("far springs %ld of %d, largest share per tick %d, %d intervals, error %.3g %%\n",
+              last_far, m.num_springs(), worst_share, intervals, 100 * err / fmax);
+  EXPECT_EQ(intervals, 150);
+  EXPECT_EQ(s.counters.rollbacks, 0u);
+  ASSERT_GT(fmax, 0);
+  EXPECT_LT(err / fmax, 0.01);
+}
+
 TEST(ActiveRegionTest, MultiRateHoldStaysBounded) {
   // Press and hold for 10 s: no roll-back, and the energy of the hold decays (mass damping) instead
   // of growing through the coupling of the two rates.
