@@ -28,10 +28,10 @@ for recipe in EF30_0T EF10_0T; do
   data=()
   for f in "$DATA/$recipe"/*.csv; do data+=(--data "$f"); done
   "$LAB" calibrate --scene configs/phantom-cylinder.pbtxt "${data[@]}" --max-strain 0.5 \
-    --full-iterations 0 --out "$FIG/repro-fit-$recipe.card" --curves "$FIG/repro-fit-$recipe.csv" \
+    --no-precompression --full-iterations 0 --out "$FIG/repro-fit-$recipe.card" --curves "$FIG/repro-fit-$recipe.csv" \
     | tee "$tmp/fit-$recipe.log" | tail -4
   "$LAB" calibrate --scene configs/phantom-cylinder.pbtxt "${data[@]}" --max-strain 0.25 \
-    --full-iterations 2 --out "$FIG/repro-fit25-$recipe.card" \
+    --no-precompression --full-iterations 2 --out "$FIG/repro-fit25-$recipe.card" \
     --curves "$FIG/repro-fit25-$recipe.csv" | tee "$tmp/fit25-$recipe.log" | tail -4
   "$PY" scripts/plot_curves.py --out "$FIG/repro-fit-$recipe.png" \
     --title "$recipe: conical card fitted to the mean of 10 tests" \
@@ -47,7 +47,7 @@ for recipe in EF30_0T EF10_0T; do
   for f in "$DATA/$recipe"/*.csv; do data+=(--data "$f"); done
   for k in 2 3; do
     "$LAB" calibrate --scene configs/phantom-cylinder.pbtxt "${data[@]}" --max-strain 0.5 \
-      --cards $k --full-iterations 3 --out "$FIG/repro-fitk$k-$recipe.card" \
+      --cards $k --no-precompression --full-iterations 3 --out "$FIG/repro-fitk$k-$recipe.card" \
       --curves "$FIG/repro-fitk$k-$recipe.csv" | tee "$tmp/fitk$k-$recipe.log" | tail -2
   done
   "$PY" scripts/plot_curves.py --out "$FIG/repro-fitk-$recipe.png" \

@@ -39,18 +39,33 @@ double sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
 double logit(double p) { return std::log(p / (1.0 - p)); }
 
 // Unconstrained coordinates of K shapes: [ln E_c (K), logit stroke (K), logit taper (K, or 1
-// when tied)], the logits over the bounds.
+// when tied), logit pre-compression (K, with pre)], the logits over the bounds. The
+// pre-compression's upper bound depends on the stroke: p <= min(p_max, 1 - smin / s), so that the
+// stroke left, (1 - p) s, stays above the card's largest strain.
 struct Layout {
   int cards = 1;
   bool tie = false;
   ShapeBounds b;
   std::vector<double> smin;  // (cards) stroke lower bound per card
   bool iso = false;          // K > 1: moduli tied by the isotropy condition
+  bool pre = false;          // pre-compressions fitted
   double stroke_min(int c) const { return c < static_cast<int>(smin.size()) ? smin[c] : b.stroke_min; }
+  double pre_max(int c, double stroke) const {
+    return std::max(0.0, std::min(b.precompression_max, 1 - stroke_min(c) / stroke));
+  }
   int moduli() const { return iso && cards > 1 ? cards - 1 : cards; }
-  int size() const { return moduli() + cards + (tie ? 1 : cards); }
+  int size() const { return moduli() + cards + (tie ? 1 : cards) + (pre ? cards : 0); }
 };
 double to01(double v, double lo, double hi) { return std::clamp((v - lo) / (hi - lo), 1e-6, 1 - 1e-6); }
+// k_t(delta0) / K0 of a shape: the factor from the card modulus E_c to the modulus at rest
+// (1 without pre-compression; shape-only, so any base card gives it).
+double rest_factor(const CardShape& sh) {
+  if (!(sh.precompression > 0)) return 1.0;
+  const ConicalCard c = card_with_shape({1e9, 1e-3, 2e-3, 8e-3, 10e-3, 3}, sh);
+  if (!validate(c).empty()) return 1.0;
+  const ConicalLaw law(c);
+  return law.rest_stiffness() / law.k0();
+}
 // Isotropic splits: K = 2, E_diag = 36/17 E_edge; K = 3, E_body = 4.5 w E_edge (w <= 0.8),
 // E_face = 4 (1 - w) E_edge (so that 4 E_e = E_f + 8/9 E_b).
 std::vector<CardShape> decode(const double* x, const Layout& L) {
@@ -60,6 +75,9 @@ std::vector<CardShape> decode(const double* x, const Layout& L) {
     out[c].stroke = L.stroke_min(c) + (L.b.stroke_max - L.stroke_min(c)) * sigmoid(x[M + c]);
     out[c].taper = L.b.taper_min +
                    (L.b.taper_max - L.b.taper_min) * sigmoid(x[M + L.cards + (L.tie ? 0 : c)]);
+    if (L.pre)
+      out[c].precompression =
+          L.pre_max(c, out[c].stroke) * sigmoid(x[M + L.cards + (L.tie ? 1 : L.cards) + c]);
   }
   if (L.iso && L.cards == 2) {
     out[0].modulus = std::exp(x[0]);
@@ -72,6 +90,9 @@ std::vector<CardShape> decode(const double* x, const Layout& L) {
   } else {
     for (int c = 0; c < L.cards; ++c) out[c].modulus = std::exp(x[c]);
   }
+  // With pre-compressions the isotropy tie holds for the moduli at rest, E_c k_t(delta0) / K0.
+  if (L.iso && L.cards > 1 && L.pre)
+    for (CardShape& sh : out) sh.modulus /= rest_factor(sh);
   return out;
 }
 std::vector<double> encode(const std::vector<CardShape>& s, const Layout& L) {
@@ -81,10 +102,17 @@ std::vector<double> encode(const std::vector<CardShape>& s, const Layout& L) {
     x[M + c] = logit(to01(s[c].stroke, L.stroke_min(c), L.b.stroke_max));
     if (!L.tie || c == 0)
       x[M + L.cards + c] = logit(to01(s[c].taper, L.b.taper_min, L.b.taper_max));
+    if (L.pre) {
+      const double hi = L.pre_max(c, s[c].stroke);
+      x[M + L.cards + (L.tie ? 1 : L.cards) + c] =
+          logit(hi > 0 ? to01(s[c].precompression, 0, hi) : 1e-6);
+    }
   }
-  x[0] = std::log(s[0].modulus);
+  const bool rest = L.iso && L.cards > 1 && L.pre;
+  auto rest_modulus = [&](int c) { return s[c].modulus * (rest ? rest_factor(s[c]) : 1.0); };
+  x[0] = std::log(rest_modulus(0));
   if (L.iso && L.cards == 3)
-    x[1] = logit(std::clamp(s[2].modulus / (4.5 * 0.8 * s[0].modulus), 1e-6, 1 - 1e-6));
+    x[1] = logit(std::clamp(rest_modulus(2) / (4.5 * 0.8 * rest_modulus(0)), 1e-6, 1 - 1e-6));
   else if (!L.iso)
     for (int c = 1; c < L.cards; ++c) x[c] = std::log(s[c].modulus);
   return x;
@@ -94,7 +122,9 @@ std::string shapes_text(const std::vector<CardShape>& sh) {
   std::string t;
   for (size_t c = 0; c < sh.size(); ++c)
     t += (c ? "; " : "") + std::string("E_c ") + fmt(sh[c].modulus, 5) + " Pa, taper " +
-         fmt(sh[c].taper, 4) + ", stroke " + fmt(sh[c].stroke, 4);
+         fmt(sh[c].taper, 4) + ", stroke " + fmt(sh[c].stroke, 4) +
+         (sh[c].precompression > 0 ? ", pre-compression " + fmt(sh[c].precompression, 4) + " S"
+                                   : std::string());
   return t;
 }
 
@@ -244,7 +274,7 @@ Eigen::VectorXd nnls(const Eigen::MatrixXd& A, const Eigen::VectorXd& b) {
 }  // namespace
 
 ColumnFloor column_floor(const std::vector<double>& strain, const std::vector<double>& force,
-                         int first, double area, const ShapeBounds& B) {
+                         int first, double area, const ShapeBounds& B, bool precompressed) {
   ColumnFloor out;
   const int n = static_cast<int>(strain.size());
   if (n != static_cast<int>(force.size()) || n - first < 2 || strain.empty()) return out;
@@ -252,27 +282,34 @@ ColumnFloor column_floor(const std::vector<double>& strain, const std::vector<do
   const double smin = std::max(B.stroke_min, std::min(0.99 * B.stroke_max, 1.02 * max_strain));
   // Basis: column stress per unit modulus, sigma(eps) = P(L0 eps) / L0^2 at E_c = 1 Pa.
   const ConicalCard base{1e9, 1e-3, 2e-3, 8e-3, 10e-3, 3};
-  const int nt = 24, ns = 24;
+  // Plain laws: 24 tapers x 24 strokes. Pre-compressed: 16 x 16 x 12 pre-compressions p from 0
+  // to the largest that leaves (1 - p) s >= smin.
+  const int nt = precompressed ? 16 : 24, ns = nt, np = precompressed ? 12 : 1;
   std::vector<CardShape> shapes;
   std::vector<std::vector<double>> cols;
   for (int i = 0; i < nt; ++i)
-    for (int j = 0; j < ns; ++j) {
-      const CardShape sh{1.0, B.taper_min + (B.taper_max - B.taper_min) * i / (nt - 1),
-                         smin + (B.stroke_max - smin) * j / (ns - 1)};
-      const ConicalCard card = card_with_shape(base, sh);
-      if (!validate(card).empty()) continue;
-      const ConicalLaw law(card);
-      std::vector<double> c(n);
-      bool ok = true;
-      for (int k = 0; k < n && ok; ++k) {
-        const double delta = strain[k] * card.L0;
-        ok = delta < law.stroke();
-        c[k] = ok ? law.evaluate_exact(delta).force / (card.L0 * card.L0) * area : 0;
+    for (int j = 0; j < ns; ++j)
+      for (int q = 0; q < np; ++q) {
+        CardShape sh{1.0, B.taper_min + (B.taper_max - B.taper_min) * i / (nt - 1),
+                     smin + (B.stroke_max - smin) * j / (ns - 1)};
+        if (np > 1)
+          sh.precompression = std::max(0.0, std::min(B.precompression_max, 1 - smin / sh.stroke)) *
+                              q / (np - 1);
+        if (q > 0 && sh.precompression == 0) continue;
+        const ConicalCard card = card_with_shape(base, sh);
+        if (!validate(card).empty()) continue;
+        const ConicalLaw law(card);
+        std::vector<double> c(n);
+        bool ok = true;
+        for (int k = 0; k < n && ok; ++k) {
+          const double delta = strain[k] * card.L0;
+          ok = delta < law.remaining_stroke();
+          c[k] = ok ? law.evaluate_exact(delta).force / (card.L0 * card.L0) * area : 0;
+        }
+        if (!ok) continue;
+        shapes.push_back(sh);
+        cols.push_back(std::move(c));
       }
-      if (!ok) continue;
-      shapes.push_back(sh);
-      cols.push_back(std::move(c));
-    }
   const int m = static_cast<int>(cols.size());
   const int R = n - first;
   if (m == 0) return out;
@@ -371,7 +408,8 @@ bool parse_force_curve(std::string_view text, Curve* out, std::string* error) {
 
 CardShape shape_of(const ConicalCard& card) {
   const ConicalLaw law(card);
-  return {law.k0() / card.L0, card.D1 / card.D2, law.stroke() / card.L0};
+  return {law.k0() / card.L0, card.D1 / card.D2, law.stroke() / card.L0,
+          card.precompression / law.stroke()};
 }
 
 ConicalCard card_with_shape(const ConicalCard& base, const CardShape& shape) {
@@ -383,6 +421,7 @@ ConicalCard card_with_shape(const ConicalCard& base, const CardShape& shape) {
   const double k0 = shape.modulus * base.L0;
   const double d4 = c.d * c.d * c.d * c.d;
   c.G = k0 * 16 * base.n_a * (std::pow(r2, 4) - std::pow(r1, 4)) / (d4 * (r2 - r1));
+  c.precompression = shape.precompression * shape.stroke * base.L0;
   return c;
 }
 
@@ -445,7 +484,10 @@ LatticeModuli lattice_moduli(const std::vector<SpringGroupSpec>& groups) {
       m.c11 = m.c12 = m.c44 = m.young = m.poisson = m.anisotropy = std::nan("");
       return m;
     }
-    const double e = g.card.k0() / g.card.free_length();
+    // modulus at rest: K0, or k_t(delta0) for a pre-compressed card
+    const double e = (g.card.law == LawKind::kConical ? ConicalLaw(g.card.conical).rest_stiffness()
+                                                      : g.card.k0()) /
+                     g.card.free_length();
     const int f = g.families & ~taken;
     if (f & kEdge) ee = e;
     if (f & kFaceDiagonal) ef = e;
@@ -565,13 +607,13 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     std::vector<double> strain(n);
     for (int k = 0; k < n; ++k) strain[k] = r.grid[k] / geo.height;
     r.floor = column_floor(strain, r.data, r.first, geo.area, o.bounds);
-    std::string laws;
-    for (const CardShape& sh : r.floor.shapes)
-      laws += (laws.empty() ? "" : "; ") + std::string("E_c ") + fmt(sh.modulus, 4) +
-              " Pa, taper " + fmt(sh.taper, 3) + ", stroke " + fmt(sh.stroke, 3);
-    say("column floor: the best sum of conical laws in parallel along the load (none past its "
-        "stroke) has average relative error " + fmt(100 * r.floor.error, 4) + " % (" +
-        std::to_string(r.floor.shapes.size()) + " laws: " + laws + ")");
+    r.floor_precompressed = column_floor(strain, r.data, r.first, geo.area, o.bounds, true);
+    for (const ColumnFloor* f : {&r.floor, &r.floor_precompressed}) {
+      say(std::string("column floor") + (f == &r.floor ? "" : ", pre-compressed laws too") +
+          ": the best sum of conical laws in parallel along the load (none past its stroke) has "
+          "average relative error " + fmt(100 * f->error, 4) + " % (" +
+          std::to_string(f->shapes.size()) + " laws: " + shapes_text(f->shapes) + ")");
+    }
   }
   say("data: " + std::to_string(curves.size()) + " curve(s) averaged on " + std::to_string(n) +
       " points up to " + fmt(r.grid.back() * 1e3) + " mm (strain " + fmt(o.max_strain) +
@@ -621,26 +663,34 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     smin[c] = std::min(B.stroke_max * 0.99, std::max(B.stroke_min, 1.02 * share * o.max_strain));
   }
 
-  // 1. One card: grid search over (taper, stroke), modulus in closed form, then LM.
-  CardShape best{1e4, 0.25, 0.9};
-  double best_err = std::numeric_limits<double>::infinity();
-  const int nt = 8, ns = 9;
+  // 1. One card: grid search over (taper, stroke[, pre-compression]), modulus in closed form,
+  // then LM. Pre-compressions on the grid: fractions of the largest the stroke allows.
+  const bool pre = o.fit_precompression;
+  CardShape best{1e4, 0.25, 0.9}, best_plain = best;
+  double best_err = std::numeric_limits<double>::infinity(), best_plain_err = best_err;
+  const int nt = 8, ns = 9, np = pre ? 6 : 1;
+  const Layout L1{1, false, B, {smin[0]}, false, pre};
   for (int i = 0; i < nt; ++i)
-    for (int j = 0; j < ns; ++j) {
-      std::vector<CardShape> sh(K);
-      sh[0].modulus = 1e4;
-      sh[0].taper = B.taper_min + (B.taper_max - B.taper_min) * (i + 0.5) / nt;
-      sh[0].stroke = smin[0] + (B.stroke_max - smin[0]) * (j + 1.0) / ns;
-      for (int c = 1; c < K; ++c) sh[c] = sh[0];
-      const double e = scaled_error(&sh);
-      if (e < best_err) {
-        best_err = e;
-        best = sh[0];
+    for (int j = 0; j < ns; ++j)
+      for (int q = 0; q < np; ++q) {
+        std::vector<CardShape> sh(K);
+        sh[0].modulus = 1e4;
+        sh[0].taper = B.taper_min + (B.taper_max - B.taper_min) * (i + 0.5) / nt;
+        sh[0].stroke = smin[0] + (B.stroke_max - smin[0]) * (j + 1.0) / ns;
+        sh[0].precompression = L1.pre_max(0, sh[0].stroke) * q / np;
+        for (int c = 1; c < K; ++c) sh[c] = sh[0];
+        const double e = scaled_error(&sh);
+        if (e < best_err) {
+          best_err = e;
+          best = sh[0];
+        }
+        if (q == 0 && e < best_plain_err) {
+          best_plain_err = e;
+          best_plain = sh[0];
+        }
       }
-    }
-  say("grid search (" + std::to_string(nt * ns) + " shapes, one card): start E_c " +
-      fmt(best.modulus, 5) + " Pa, taper " + fmt(best.taper, 4) + ", stroke " +
-      fmt(best.stroke, 4) + ", average relative error " + fmt(100 * best_err, 4) + " %");
+  say("grid search (" + std::to_string(nt * ns * np) + " shapes, one card): start " +
+      shapes_text({best}) + ", average relative error " + fmt(100 * best_err, 4) + " %");
 
   const int R = n - r.first;
   RelativeResiduals res;
@@ -648,7 +698,6 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   res.base = base;
   res.data = &r.data;
   res.first = r.first;
-  Layout L1{1, false, B, {smin[0]}, false};
   res.layout = L1;
   std::vector<double> x1 = encode({best}, L1);
   solve_lm(res, R, o.max_iterations, true, 1e-6, o, "surrogate LM (one card)", x1.data());
@@ -662,8 +711,23 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   std::vector<Candidate> found;
   if (K == 1) {
     found.push_back({{one}, 0});
+    if (pre) {
+      // The plain optimum too: its body may hold up better than the pre-compressed one's (the
+      // full body is checked at both, below).
+      const Layout L0p{1, false, B, {smin[0]}, false, false};
+      res.layout = L0p;
+      std::vector<double> x0 = encode({best_plain}, L0p);
+      solve_lm(res, R, o.max_iterations, true, 1e-6, o, "surrogate LM (one card, plain law)",
+               x0.data());
+      const CardShape plain = decode(x0.data(), L0p)[0];
+      found.push_back({{plain}, average_relative_error(surrogate(cards_of(base, {plain})), r.data,
+                                                       r.first)});
+      found[0].surrogate_error = average_relative_error(surrogate(cards_of(base, {one})), r.data,
+                                                        r.first);
+      res.layout = L1;
+    }
   } else {
-    Layout L{K, o.tie_taper, B, smin, o.isotropic};
+    Layout L{K, o.tie_taper, B, smin, o.isotropic, pre};
     res.layout = L;
     std::vector<Candidate> starts;
     auto add_start = [&](std::vector<CardShape> sh) {
@@ -689,6 +753,8 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
           // the edges stiffen later when the diagonals take part of the stiffening
           for (double edge_stroke : {one.stroke, std::min(B.stroke_max, one.stroke * 1.15)}) {
             sh[0].stroke = edge_stroke;
+            for (int c = 0; c < K; ++c)  // the stroke left must still cover the card's strain
+              sh[c].precompression = std::min(one.precompression, L.pre_max(c, sh[c].stroke));
             add_start(sh);
           }
         }
@@ -747,8 +813,9 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   double best_full = std::numeric_limits<double>::infinity();
   std::vector<CardShape> best_shapes = found.front().shapes;
   std::vector<double> best_curve;
-  const int verify = K == 1 ? 1 : std::min<int>(std::max(1, o.verify_candidates),
-                                                 static_cast<int>(found.size()));
+  const int verify = K == 1 ? static_cast<int>(found.size())
+                            : std::min<int>(std::max(1, o.verify_candidates),
+                                            static_cast<int>(found.size()));
   for (int c = 0; c < verify; ++c) {
     const std::vector<double> f = full(cards_of(base, found[c].shapes));
     const double e = average_relative_error(f, r.data, r.first);
@@ -764,7 +831,7 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   set_result(best_shapes);
   r.surrogate_error_before_refine = r.surrogate_error;
   r.full_error_before_refine = best_full;
-  const Layout LK{K, K > 1 && o.tie_taper, B, smin, K > 1 && o.isotropic};
+  const Layout LK{K, K > 1 && o.tie_taper, B, smin, K > 1 && o.isotropic, pre};
 
   // 4. Output space mapping: the full body differs from the cell surrogate (boundary cells,
   // the cylinder's distorted cells), by a ratio that depends on the strain and only weakly on
@@ -839,7 +906,9 @@ std::string card_fragment(const std::string& group_name, const SpringCard& card)
   const ConicalCard& c = card.conical;
   os << "group {\n  name: \"" << group_name << "\"\n  card {\n"
      << "    conical { G: " << fmt(c.G, 9) << " d: " << fmt(c.d, 9) << " D1: " << fmt(c.D1, 9)
-     << " D2: " << fmt(c.D2, 9) << " L0: " << fmt(c.L0, 9) << " n_a: " << fmt(c.n_a, 9) << " }\n"
+     << " D2: " << fmt(c.D2, 9) << " L0: " << fmt(c.L0, 9) << " n_a: " << fmt(c.n_a, 9);
+  if (c.precompression > 0) os << " precompression: " << fmt(c.precompression, 9);
+  os << " }\n"
      << "    stiffness_cap: " << fmt(card.stiffness_cap, 9) << "\n";
   if (card.damping > 0) os << "    damping: " << fmt(card.damping, 9) << "\n";
   if (card.maxwell_k > 0)

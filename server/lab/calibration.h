@@ -16,6 +16,17 @@
 // (r2 - r1)^2) (Type I; s = 1 is the Type I/II boundary); G from K0 = E_c L0. At fixed (rho, s)
 // every force is proportional to E_c, which gives the starting modulus in closed form.
 //
+// Pre-compression (FitOptions::fit_precompression, on by default): a fourth number per card,
+// p = delta0 / S in [0, 1): the card's spring sits in the body compressed by delta0 and the column
+// law becomes sigma(eps) = (Pt / L0^2) [f(p + eps / s; rho) - f(p; rho)], which stiffens from
+// zero strain once p is past the transition (the plain law is linear over the first quarter of
+// its stroke at least). What one curve fixes: the curve, the modulus at rest E_c k_t(delta0) / K0
+// and the strain left to the solid height, s (1 - p), kept above the largest strain of the
+// card's springs; taper, stroke and p trade off along a valley (p comes back within a few
+// hundredths of S from a noiseless model curve, test RecoversAKnownPrecompression), as taper
+// and stroke already did for the plain law. With several cards the isotropy tie below holds for
+// the moduli at rest.
+//
 // Several cards (FitOptions::cards = K). The scene's conical group is split by lattice family
 // (K = 2: edges | face and body diagonals; K = 3: edges | face diagonals | body diagonals), each
 // part with its own card, i.e. its own (E_c, taper, stroke): springs of different families in
@@ -48,14 +59,15 @@ namespace conica::lab {
 // (up to the largest compression). Returns false with a message on malformed input.
 bool parse_force_curve(std::string_view text, Curve* out, std::string* error);
 
-// The identifiable parameters of a conical card (see above).
+// The identifiable parameters of a conical card (see above), and its pre-compression.
 struct CardShape {
   double modulus = 0;  // E_c = K0 / L0, Pa
   double taper = 0;    // rho = D1 / D2, in (0, 1)
   double stroke = 0;   // s = S / L0, in (0, 1]
+  double precompression = 0;  // p = delta0 / S, in [0, 1): the card's precompression is p S
 };
 CardShape shape_of(const ConicalCard& card);
-// `base` with D1, d and G set from `shape`; D2, L0, n_a kept. The result may be invalid for
+// `base` with D1, d, G and precompression set from `shape`; D2, L0, n_a kept. The result may be invalid for
 // shapes out of range (check with validate()).
 ConicalCard card_with_shape(const ConicalCard& base, const CardShape& shape);
 
@@ -64,6 +76,8 @@ struct ShapeBounds {
   double taper_min = 0.02, taper_max = 0.95;
   double stroke_min = 0.1, stroke_max = 1.0;  // a card's stroke is also kept above the
                                               // largest strain of its springs in the fit range
+  double precompression_max = 0.9;  // p = delta0 / S; the stroke left, (1 - p) s, is also kept
+                                    // above the largest strain of the card's springs
 };
 
 // Family masks (SpringFamily bits) of the cards of a K-card fit, K = 1..3.
@@ -91,6 +105,10 @@ LatticeModuli lattice_moduli(const std::vector<SpringGroupSpec>& groups);
 // a curve that stiffens from the start cannot be followed there. Computed over a basis of
 // tapers x strokes (the bounds' ranges) with non-negative moduli, the L1 error minimised by
 // iteratively reweighted non-negative least squares (Lawson-Hanson).
+// With `precompressed` the basis also holds pre-compressed laws (P(delta0 + delta) - P(delta0),
+// delta0 = p S with p over [0, precompression_max], the stroke left (1 - p) S still >= 1.02 x the
+// largest strain): they start in their nonlinear phase, so the quarter-stroke linear start above
+// no longer binds.
 struct ColumnFloor {
   double error = -1;              // fraction; -1: not computed
   std::vector<CardShape> shapes;  // the laws with a nonzero modulus (modulus: share in Pa of
@@ -100,14 +118,17 @@ struct ColumnFloor {
 // `strain`: engineering strains of the grid (ascending); `force`: measured force there (N);
 // `area`: the body's cross-section (m^2), only to report the moduli in Pa.
 ColumnFloor column_floor(const std::vector<double>& strain, const std::vector<double>& force,
-                         int first, double area, const ShapeBounds& bounds = {});
+                         int first, double area, const ShapeBounds& bounds = {},
+                         bool precompressed = false);
 
 struct FitOptions {
   int cards = 1;             // conical cards, one per family part (see above), 1..3
   bool tie_taper = false;    // the cards share one taper
   bool isotropic = true;     // K > 1: the family moduli satisfy the isotropy condition
                              // 4 E_edge = E_face + 8/9 E_body (K - 1 moduli free instead of K)
-  int verify_candidates = 3; // K > 1: full-body check of this many distinct surrogate optima,
+  int verify_candidates = 3; // K > 1: full-body check of this many distinct surrogate optima
+                             // (K = 1 with fit_precompression: the pre-compressed and the plain
+                             // optimum are both checked),
                              // the best full-body one is kept (full_iterations >= 0)
   double max_strain = 0.5;   // fit up to this engineering strain of the body
   int points = 50;           // displacement grid: points equal steps up to max_strain
@@ -122,7 +143,10 @@ struct FitOptions {
                              // optimum; one full compression per step (0: none). On the
                              // phantom cylinder it does not converge: the full body's late
                              // collapse makes the ratio depend strongly on the cards.
-  bool column_floor = true;  // compute the column floor (see above) of the data
+  bool column_floor = true;  // compute the column floor (see above) of the data, without and
+                             // with pre-compressed laws
+  bool fit_precompression = true;  // fit each card's pre-compression p = delta0 / S too (a
+                                   // fourth number per card); false: p = 0, the plain law
   double rate = 500e-3 / 60; // m/s, plate speed of the full-body compression
   ShapeBounds bounds;
   std::function<void(const std::string&)> progress;  // one line per stage / iteration
@@ -146,7 +170,8 @@ struct FitResult {
   double surrogate_error_before_refine = -1;  // surrogate error at the surrogate optimum
   double full_error_before_refine = -1;       // full-body error at the surrogate optimum
   double full_error_after_mapping = -1;       // full-body error after space mapping (-1: none)
-  ColumnFloor floor;              // of the data (options.column_floor)
+  ColumnFloor floor;              // of the data (options.column_floor), plain conical laws
+  ColumnFloor floor_precompressed;  // the same with pre-compressed laws in the basis
   int evaluations = 0;            // surrogate curves computed
   int full_evaluations = 0;       // full-body compressions run
   std::string error;              // why the fit could not run (empty: it ran)
