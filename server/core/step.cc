@@ -708,6 +708,26 @@ Workspace::Workspace(const Model& m) {
   slow.reserve(ns);
   impulse.assign(nn, Vec3::Zero());
   for (auto* v : {&far_fx, &far_fy, &far_fz}) v->assign(nn, 0.0);
+  flipped.reserve(nn);
+  node_spring_start.assign(nn + 1, 0);
+  for (size_t k = 0; k < ns; ++k) {
+    ++node_spring_start[m.spring_i[k] + 1];
+    ++node_spring_start[m.spring_j[k] + 1];
+  }
+  for (size_t i = 0; i < nn; ++i) node_spring_start[i + 1] += node_spring_start[i];
+  node_springs.assign(2 * ns, 0);
+  {
+    std::vector<int> fill(node_spring_start.begin(), node_spring_start.end() - 1);
+    for (size_t k = 0; k < ns; ++k) {
+      node_springs[fill[m.spring_i[k]]++] = static_cast<int>(k);
+      node_springs[fill[m.spring_j[k]]++] = static_cast<int>(k);
+    }
+  }
+  spring_on.assign(ns, 1);
+  spring_chunk.assign(ns, 0);
+  for (size_t c = 0; c < chunks.size(); ++c)
+    for (int k = chunks[c].k0; k < chunks[c].k1; ++k) spring_chunk[k] = static_cast<int>(c);
+  chunk_active_count.assign(chunks.size(), 0);
   slow_scale.assign(ns, 0.0);
   chunk_slow.assign(chunks.size(), 0);
   for (const SpringGroup& g : m.groups) {
@@ -870,6 +890,7 @@ void update_region(const Model& m, State& s, Workspace& ws) {
     const std::uint8_t now = near || ws.wake[i] || (ws.awake[i] && keep);
     if (now != ws.awake[i]) {
       changed = true;
+      ws.flipped.push_back(i);  // capacity reserved for every node
       if (!now && ws.far_every <= 0) s.v[i].setZero();  // frozen: falls asleep at its state
       ws.awake[i] = now;
     }
@@ -877,6 +898,7 @@ void update_region(const Model& m, State& s, Workspace& ws) {
     awake_count += now;
   }
   s.counters.awake_nodes = awake_count;
+  const bool first = ws.num_active < 0;
   if (!changed) return;
   ws.awake_list.clear();  // capacities reserved for every node and spring: no allocation
   for (int i = 0; i < nn; ++i)
@@ -885,6 +907,47 @@ void update_region(const Model& m, State& s, Workspace& ws) {
   ws.border.clear();
   ws.slow.clear();
   const bool multirate = ws.far_every > 0;
+  if (multirate && !ws.runs.empty() && !first) {
+    // Lattices, multi-rate: only the springs of nodes that changed side change theirs, so the
+    // per-spring scales and the per-chunk counts are updated from the node-spring adjacency, and
+    // the active list and the border are rebuilt from the awake nodes' springs: O(awake springs)
+    // instead of O(springs), so a tick that changes the region stays cheap.
+    for (int i : ws.flipped) {
+      for (int e = ws.node_spring_start[i]; e < ws.node_spring_start[i + 1]; ++e) {
+        const int k = ws.node_springs[e];
+        const std::uint8_t on = ws.awake[m.spring_i[k]] || ws.awake[m.spring_j[k]];
+        if (on == ws.spring_on[k]) continue;
+        ws.spring_on[k] = on;
+        const int c = ws.spring_chunk[k];
+        ws.chunk_active_count[c] += on ? 1 : -1;
+        ws.active_scale[k] = on ? m.force_scale[k] : 0.0;
+        ws.slow_scale[k] = on ? 0.0 : m.force_scale[k];
+      }
+    }
+    ws.flipped.clear();
+    int n = 0;
+    for (int i : ws.awake_list) {
+      for (int e = ws.node_spring_start[i]; e < ws.node_spring_start[i + 1]; ++e) {
+        const int k = ws.node_springs[e];
+        const int o = m.spring_i[k] == i ? m.spring_j[k] : m.spring_i[k];
+        if (!ws.awake[o]) {
+          if (!ws.in_border[o]) ws.border.push_back(o);
+          ws.in_border[o] = 1;
+        } else if (o < i) {
+          continue;  // both awake: listed once, from the end with the smaller index
+        }
+        ws.active[n++] = k;
+      }
+    }
+    ws.num_active = n;
+    for (size_t c = 0; c < ws.chunks.size(); ++c) {
+      const int size = ws.chunks[c].k1 - ws.chunks[c].k0;
+      ws.chunk_awake[c] = ws.chunk_active_count[c] > 0;
+      ws.chunk_slow[c] = ws.chunk_active_count[c] < size;
+    }
+    return;
+  }
+  ws.flipped.clear();
   int n = 0;
   for (int k = 0; k < m.num_springs(); ++k) {
     const int i = m.spring_i[k], j = m.spring_j[k];
@@ -903,10 +966,14 @@ void update_region(const Model& m, State& s, Workspace& ws) {
   ws.num_active = n;
   for (size_t c = 0; c < ws.chunks.size(); ++c) {
     bool any = false, any_slow = false;
+    int count = 0;
     for (int k = ws.chunks[c].k0; k < ws.chunks[c].k1; ++k) {
+      ws.spring_on[k] = ws.active_scale[k] != 0;
+      count += ws.spring_on[k];
       any |= ws.active_scale[k] != 0;
       any_slow |= multirate && ws.slow_scale[k] != 0;
     }
+    ws.chunk_active_count[c] = count;
     ws.chunk_awake[c] = any;
     ws.chunk_slow[c] = any_slow;
   }

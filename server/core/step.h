@@ -138,6 +138,13 @@ struct Workspace {
   std::vector<double> far_fx, far_fy, far_fz;     // (num_nodes) N, far springs' forces of this
                                                   // interval, summed over its ticks
   int far_springs_evaluated = 0;                  // springs the last tick's far share evaluated
+  // Incremental region updates (lattices, multi-rate).
+  std::vector<int> node_spring_start, node_springs;  // (num_nodes + 1), (2 num_springs): springs
+                                                     // of node i: [start[i], start[i + 1])
+  std::vector<int> flipped;                       // nodes that changed side in this update
+  std::vector<std::uint8_t> spring_on;            // (num_springs) the spring has an awake end
+  std::vector<int> spring_chunk;                  // (num_springs) its chunk (runs path)
+  std::vector<int> chunk_active_count;            // (chunks) springs with an awake end
   std::vector<double> tangent_limit;              // (groups) card units: far springs beyond wake
   bool has_maxwell = false;                       // a group has a Maxwell branch
   // Last good state for rollback.

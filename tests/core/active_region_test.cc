@@ -174,6 +174,15 @@ TEST(ActiveRegionTest, FarStepIsSpreadOverItsInterval) {
         if (ws.chunk_slow[c]) far += ws.chunks[c].k1 - ws.chunks[c].k0;
     }
     ASSERT_GT(far, 0);
+    // The region's lists, updated incrementally, match a count from scratch.
+    int on = 0, mismatched = 0;
+    for (int k = 0; k < m.num_springs(); ++k) {
+      const bool awake_end = ws.awake[m.spring_i[k]] || ws.awake[m.spring_j[k]];
+      on += awake_end;
+      mismatched += awake_end != (ws.active_scale[k] != 0) || awake_end == (ws.slow_scale[k] != 0);
+    }
+    ASSERT_EQ(mismatched, 0) << "tick " << t;
+    ASSERT_EQ(ws.num_active, on) << "tick " << t;
     // Shares are equal ranges of chunks (or of the far spring list): at most a quarter of the
     // springs plus one chunk.
     EXPECT_LE(ws.far_springs_evaluated, m.num_springs() / 4 + slack) << "tick " << t;
