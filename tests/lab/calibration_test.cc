@@ -199,8 +199,10 @@ TEST(CalibrationTest, FitOnHalfOfThePhantomTestsPredictsTheOtherHalf) {
     const double predict = average_relative_error(fit.surrogate, b, fit.first);
     std::printf("%s: fit on A %.2f %%, prediction of B %.2f %%\n", recipe,
                 100 * fit.surrogate_error, 100 * predict);
-    EXPECT_LT(fit.surrogate_error, 0.10) << recipe;
-    EXPECT_LT(predict, 0.11) << recipe;
+    // Pre-compressed card (default): 2.3 / 1.6 % fit, 1.9 / 2.8 % prediction; the plain law
+    // could not go below its column floor (5.9 % / 4.8 %).
+    EXPECT_LT(fit.surrogate_error, 0.03) << recipe;
+    EXPECT_LT(predict, 0.035) << recipe;
   }
 }
 
