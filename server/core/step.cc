@@ -2,6 +2,8 @@
 
 #include "core/body.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <bit>
 #include <cstdint>
@@ -693,12 +695,36 @@ Workspace::Workspace(const Model& m) {
       const double w2 = rate[rate.size() / 2];
       if (w2 > 0) typical = std::max(far_max_every, int(0.9 * 2 / (dt * std::sqrt(w2))));
     }
+    // Measured instead: the largest eigenvalue of M^-1 K (linear phase, at rest) by Lanczos, and
+    // the dampers' explicit damping, which lowers the bound (see far_spectral_bound).
+    measured_every = 0;
+    if (m.options.active_region && m.options.active_far_every >= 0) {
+      double ratio = 0;  // largest dashpot / stiffness ratio of a group, s
+      for (const SpringGroup& g : m.groups) {
+        const double k = (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k;
+        if (k > 0) ratio = std::max(ratio, g.card.damping / k);
+      }
+      far_lambda = far_spectral_bound(m);
+      const double gamma = m.options.mass_damping + ratio * far_lambda;
+      far_gamma = gamma;
+      // Symplectic Euler with explicit damping g on a mode omega^2 = lambda is stable while
+      // H^2 lambda + 2 H g < 4; with the 0.9 margin on H omega: <= 1.8^2.
+      for (int n = 1; n < 64; ++n) {
+        const double H = n * dt;
+        if (H * H * far_lambda + 2 * H * gamma > 1.8 * 1.8) break;
+        measured_every = n;
+      }
+      // A mesh whose few lightest, stiffest nodes set the spectrum keeps the typical node's
+      // interval with their inertia raised (below) when that is longer.
+      typical = std::max(typical, measured_every);
+    }
     far_every = m.options.active_far_every < 0    ? 0
                 : m.options.active_far_every == 0 ? typical
                                                   : m.options.active_far_every;
     far_inv_mass = m.inv_mass;
     const double H = std::max(far_every, 1) * dt;
-    for (size_t i = 0; i < nn; ++i)
+    const bool raise = measured_every == 0 || far_every > measured_every;
+    for (size_t i = 0; i < nn && raise; ++i)
       if (node_k[i] > 0)
         far_inv_mass[i] = std::min(m.inv_mass[i], (2 * 0.9) * (2 * 0.9) / (H * H * 2 * node_k[i]));
   }
@@ -740,6 +766,77 @@ Workspace::Workspace(const Model& m) {
       min_length2[k] = lmin * lmin;
     }
   }
+}
+
+double far_spectral_bound(const Model& m) {
+  // Lanczos on A = M^-1/2 K M^-1/2 over the free axes, K = sum a b (K0 + k_m) d d^T at rest.
+  // The largest Ritz value plus its residual |beta_j s_j| bounds the eigenvalue it converges to
+  // from above; 40 iterations resolve the top of a lattice's spectrum to about 1 %.
+  const int nn = m.num_nodes(), ns = m.num_springs();
+  std::vector<double> w(3 * nn), q(3 * nn, 0.0), qprev(3 * nn, 0.0), y(3 * nn), kax(ns);
+  std::vector<Vec3> dir(ns);
+  for (const SpringGroup& g : m.groups) {
+    const double k0 = (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k;
+    for (int k = g.begin; k < g.end; ++k) {
+      kax[k] = m.force_scale[k] * m.deflection_scale[k] * k0;
+      const Vec3 u = m.rest[m.spring_j[k]] - m.rest[m.spring_i[k]];
+      dir[k] = u / std::max(u.norm(), 1e-300);
+    }
+  }
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) w[3 * i + c] = std::sqrt(m.inv_mass[i]) * m.free_axes[i][c];
+  auto apply = [&](const std::vector<double>& x, std::vector<double>& out) {
+    std::fill(out.begin(), out.end(), 0.0);
+    for (int k = 0; k < ns; ++k) {
+      const int i = 3 * m.spring_i[k], j = 3 * m.spring_j[k];
+      const Vec3 xi(w[i] * x[i], w[i + 1] * x[i + 1], w[i + 2] * x[i + 2]);
+      const Vec3 xj(w[j] * x[j], w[j + 1] * x[j + 1], w[j + 2] * x[j + 2]);
+      const Vec3 f = kax[k] * dir[k].dot(xj - xi) * dir[k];
+      for (int c = 0; c < 3; ++c) {
+        out[i + c] -= f[c];
+        out[j + c] += f[c];
+      }
+    }
+    for (int t = 0; t < 3 * nn; ++t) out[t] *= w[t];
+  };
+  // Deterministic start with every mode present: a fixed pseudo-random vector.
+  std::uint64_t seed = 0x9e3779b97f4a7c15ULL;
+  double norm = 0;
+  for (int t = 0; t < 3 * nn; ++t) {
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    q[t] = (double(seed >> 11) / double(1ULL << 53) - 0.5) * (w[t] > 0);
+    norm += q[t] * q[t];
+  }
+  if (!(norm > 0)) return 0;
+  for (double& v : q) v /= std::sqrt(norm);
+  constexpr int kIter = 40;
+  std::vector<double> alpha, beta;
+  double b = 0;
+  for (int it = 0; it < kIter; ++it) {
+    apply(q, y);
+    double a = 0;
+    for (int t = 0; t < 3 * nn; ++t) a += q[t] * y[t];
+    for (int t = 0; t < 3 * nn; ++t) y[t] -= a * q[t] + b * qprev[t];
+    alpha.push_back(a);
+    double nb = 0;
+    for (double v : y) nb += v * v;
+    nb = std::sqrt(nb);
+    beta.push_back(nb);
+    if (!(nb > 1e-12 * std::abs(a))) break;
+    qprev.swap(q);
+    for (int t = 0; t < 3 * nn; ++t) q[t] = y[t] / nb;
+    b = nb;
+  }
+  const int k = static_cast<int>(alpha.size());
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(k, k);
+  for (int i = 0; i < k; ++i) {
+    T(i, i) = alpha[i];
+    if (i + 1 < k) T(i, i + 1) = T(i + 1, i) = beta[i];
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(T);
+  const double theta = eig.eigenvalues()(k - 1);
+  const double residual = std::abs(beta[k - 1] * eig.eigenvectors()(k - 1, k - 1));
+  return theta + residual;
 }
 
 void compute_forces(const Model& model, State& state, Workspace& ws) {

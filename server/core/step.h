@@ -126,6 +126,11 @@ struct Workspace {
   // Multi-rate far field.
   int far_every = 0;                              // N ticks per far step; 0: frozen far field
   int far_max_every = 1;                          // the far field's stability bound on N
+                                                  // (Gershgorin, lightest node)
+  int measured_every = 0;                         // the bound from the measured spectrum (0: not
+                                                  // measured: frozen or no active region)
+  double far_lambda = 0;                          // 1/s^2, largest eigenvalue of M^-1 K measured
+  double far_gamma = 0;                           // 1/s, the far step's explicit damping bound
   int far_phase = 0;                              // ticks into the current interval
   std::vector<int> awake_list;                    // awake nodes
   std::vector<int> border;                        // sleeping nodes an awake spring touches
@@ -151,6 +156,16 @@ struct Workspace {
   std::vector<Vec3> good_x, good_v;
   std::vector<double> good_maxwell;
 };
+
+// The largest eigenvalue (1/s^2) of M^-1 K of the body at rest in its springs' linear phase
+// (K = sum a b (K0 + k_m) d d^T over free axes), by 40 Lanczos iterations: the largest Ritz value
+// plus its residual. The multi-rate far field's automatic interval N is the largest with
+// (N dt)^2 lambda + 2 N dt gamma <= 1.8^2 (symplectic Euler with explicit damping
+// gamma = mass_damping + max(c / K0) lambda is stable below 4; 0.9 margin on H omega), and at that
+// N no far node needs a raised inertia; when the typical node's Gershgorin interval is longer (a
+// mesh whose few light, stiff nodes set the spectrum) that one is kept, with raised inertia.
+// Allocates: for building a Workspace only.
+double far_spectral_bound(const Model& model);
 
 // Forces on every node at (state.x, state.v): springs, dampers, Maxwell branches, gravity, mass
 // damping, contact. Fills ws.force and the probe/plane reactions in state.

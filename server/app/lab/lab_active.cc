@@ -82,7 +82,8 @@ void register_active_region(CLI::App& app, Runner* run) {
         std::vector<double> tick_us;  // (ticks) step time of each tick, us
         double seconds = 0;
         std::uint64_t awake_sum = 0, rollbacks = 0;
-        int far_every = 0, far_max_every = 0;
+        int far_every = 0, far_max_every = 0, measured_every = 0;
+        double far_lambda = 0, damping_ratio = 0;
       };
       auto drive = [&](const Model& m) {
         Run r;
@@ -106,6 +107,9 @@ void register_active_region(CLI::App& app, Runner* run) {
         r.rollbacks = s.counters.rollbacks;
         r.far_every = ws.far_every;
         r.far_max_every = ws.far_max_every;
+        r.measured_every = ws.measured_every;
+        r.far_lambda = ws.far_lambda;
+        r.damping_ratio = ws.far_gamma;
         return r;
       };
       const Run a = drive(full), b = drive(active);
@@ -128,7 +132,9 @@ void register_active_region(CLI::App& app, Runner* run) {
                   100.0 * b.awake_sum / (double(o->ticks) * full.num_nodes()),
                   (unsigned long)b.rollbacks);
       if (b.far_every > 0)
-        std::printf("far field: one step every %d ticks (stability bound %d)\n", b.far_every,
+        std::printf("far field: one step every %d ticks (bound from the measured spectrum %d: "
+                    "omega_max %.0f rad/s, damping bound %.0f 1/s; Gershgorin at the lightest node %d)\n",
+                    b.far_every, b.measured_every, std::sqrt(b.far_lambda), b.damping_ratio,
                     b.far_max_every);
       else
         std::printf("far field: frozen\n");
