@@ -708,12 +708,15 @@ Workspace::Workspace(const Model& m) {
       const double gamma = m.options.mass_damping + ratio * far_lambda;
       far_gamma = gamma;
       // Symplectic Euler with explicit damping g on a mode omega^2 = lambda is stable while
-      // H^2 lambda + 2 H g < 4; with the 0.9 margin on H omega: <= 1.8^2.
-      for (int n = 1; n < 64; ++n) {
-        const double H = n * dt;
-        if (H * H * far_lambda + 2 * H * gamma > 1.8 * 1.8) break;
-        measured_every = n;
-      }
+      // H^2 lambda + 2 H g < 4; with the 0.9 margin on H omega: <= 1.8^2. An inertia raised by a
+      // factor s on every far node divides lambda and the dashpots' part of g by s; the interval
+      // is the longest that needs s <= 1.1 (far frequencies within 5 %).
+      auto raise_for = [&](int n) {
+        const double H = n * dt, room = 1.8 * 1.8 - 2 * H * m.options.mass_damping;
+        if (!(room > 0)) return std::numeric_limits<double>::infinity();
+        return std::max(1.0, (H * H * far_lambda + 2 * H * ratio * far_lambda) / room);
+      };
+      for (int n = 1; n < 64 && raise_for(n) <= 1.1; ++n) measured_every = n;
       // A mesh whose few lightest, stiffest nodes set the spectrum keeps the typical node's
       // interval with their inertia raised (below) when that is longer.
       typical = std::max(typical, measured_every);
@@ -724,6 +727,17 @@ Workspace::Workspace(const Model& m) {
     far_inv_mass = m.inv_mass;
     const double H = std::max(far_every, 1) * dt;
     const bool raise = measured_every == 0 || far_every > measured_every;
+    far_raise = 1;
+    if (!raise && far_every > 0) {
+      const double Hf = far_every * dt, room = 1.8 * 1.8 - 2 * Hf * m.options.mass_damping;
+      double ratio = 0;
+      for (const SpringGroup& g : m.groups) {
+        const double k = (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k;
+        if (k > 0) ratio = std::max(ratio, g.card.damping / k);
+      }
+      far_raise = std::max(1.0, (Hf * Hf * far_lambda + 2 * Hf * ratio * far_lambda) / room);
+      for (size_t i = 0; i < nn; ++i) far_inv_mass[i] = m.inv_mass[i] / far_raise;
+    }
     for (size_t i = 0; i < nn && raise; ++i)
       if (node_k[i] > 0)
         far_inv_mass[i] = std::min(m.inv_mass[i], (2 * 0.9) * (2 * 0.9) / (H * H * 2 * node_k[i]));

@@ -131,6 +131,7 @@ struct Workspace {
                                                   // measured: frozen or no active region)
   double far_lambda = 0;                          // 1/s^2, largest eigenvalue of M^-1 K measured
   double far_gamma = 0;                           // 1/s, the far step's explicit damping bound
+  double far_raise = 1;                           // inertia factor of every far node (measured)
   int far_phase = 0;                              // ticks into the current interval
   std::vector<int> awake_list;                    // awake nodes
   std::vector<int> border;                        // sleeping nodes an awake spring touches
@@ -160,9 +161,10 @@ struct Workspace {
 // The largest eigenvalue (1/s^2) of M^-1 K of the body at rest in its springs' linear phase
 // (K = sum a b (K0 + k_m) d d^T over free axes), by 40 Lanczos iterations: the largest Ritz value
 // plus its residual. The multi-rate far field's automatic interval N is the largest with
-// (N dt)^2 lambda + 2 N dt gamma <= 1.8^2 (symplectic Euler with explicit damping
-// gamma = mass_damping + max(c / K0) lambda is stable below 4; 0.9 margin on H omega), and at that
-// N no far node needs a raised inertia; when the typical node's Gershgorin interval is longer (a
+// (N dt)^2 lambda / s + 2 N dt gamma(s) <= 1.8^2 for an inertia factor s <= 1.1 on every far node
+// (symplectic Euler with explicit damping gamma = mass_damping + max(c / K0) lambda / s is stable
+// below 4; 0.9 margin on H omega); up to that N the far nodes take that uniform s (the smallest
+// that meets the bound) and no per-node raise; when the typical node's Gershgorin interval is longer (a
 // mesh whose few light, stiff nodes set the spectrum) that one is kept, with raised inertia.
 // Allocates: for building a Workspace only.
 double far_spectral_bound(const Model& model);

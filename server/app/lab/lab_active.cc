@@ -83,7 +83,7 @@ void register_active_region(CLI::App& app, Runner* run) {
         double seconds = 0;
         std::uint64_t awake_sum = 0, rollbacks = 0;
         int far_every = 0, far_max_every = 0, measured_every = 0;
-        double far_lambda = 0, damping_ratio = 0;
+        double far_lambda = 0, damping_ratio = 0, far_raise = 1;
       };
       auto drive = [&](const Model& m) {
         Run r;
@@ -110,6 +110,7 @@ void register_active_region(CLI::App& app, Runner* run) {
         r.measured_every = ws.measured_every;
         r.far_lambda = ws.far_lambda;
         r.damping_ratio = ws.far_gamma;
+        r.far_raise = ws.far_raise;
         return r;
       };
       const Run a = drive(full), b = drive(active);
@@ -133,9 +134,10 @@ void register_active_region(CLI::App& app, Runner* run) {
                   (unsigned long)b.rollbacks);
       if (b.far_every > 0)
         std::printf("far field: one step every %d ticks (bound from the measured spectrum %d: "
-                    "omega_max %.0f rad/s, damping bound %.0f 1/s; Gershgorin at the lightest node %d)\n",
+                    "omega_max %.0f rad/s, damping bound %.0f 1/s, far inertia x %.3f; Gershgorin at the "
+                    "lightest node %d)\n",
                     b.far_every, b.measured_every, std::sqrt(b.far_lambda), b.damping_ratio,
-                    b.far_max_every);
+                    b.far_raise, b.far_max_every);
       else
         std::printf("far field: frozen\n");
       auto quantile = [](std::vector<double> v, double q) {
