@@ -260,6 +260,22 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   if (o.newton_iterations < 1 || o.cg_iterations < 1)
     return Error{swhere + "newton_iterations and cg_iterations must be >= 1"};
   if (o.mass_damping < 0) return Error{swhere + "mass_damping must be >= 0"};
+  if (s.has_active_region()) {
+    const auto& a = s.active_region();
+    const std::string awhere = loc.at("solver") + "solver.active_region: ";
+    if (o.integrator == Integrator::kImplicitEuler)
+      return Error{awhere + "needs SYMPLECTIC_EULER or EXPLICIT_EULER (the implicit step couples "
+                            "every node)"};
+    if (!(a.tolerance() > 0) || !std::isfinite(a.tolerance()))
+      return Error{awhere + "tolerance must be a positive length in m (got " + num(a.tolerance()) +
+                   ")"};
+    if (a.far_every() < -1 || a.far_every() > 1000)
+      return Error{awhere + "far_every must be -1 (frozen), 0 (automatic) or 1..1000 ticks (got " +
+                   std::to_string(a.far_every()) + ")"};
+    o.active_region = true;
+    o.active_tolerance = a.tolerance();
+    o.active_far_every = a.far_every();
+  }
 
   // Build once so that every semantic error surfaces at load, pointing at its group if any.
   Model model;

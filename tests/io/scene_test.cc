@@ -130,5 +130,34 @@ TEST(SceneTest, PrecompressionIsReadInMetresAndCheckedAgainstTheStroke) {
   EXPECT_NEAR(std::stod(e.substr(at + key.size())), 0.01, 1e-8) << e;
 }
 
+TEST(SceneTest, ActiveRegionIsReadAndCheckedInTheSolver) {
+  auto with = [](const std::string& solver) { return std::string(kGood) + "solver { " + solver + " }\n"; };
+  auto ok = parse_scene(with("active_region { tolerance: 3e-4 far_every: 4 }"), "s.pbtxt", kConfigs);
+  ASSERT_TRUE(ok) << ok.error();
+  const SolverOptions& o = ok.value().spec.options;
+  EXPECT_TRUE(o.active_region);
+  EXPECT_EQ(o.active_tolerance, 3e-4);
+  EXPECT_EQ(o.active_far_every, 4);
+  auto plain = parse_scene(kGood, "s.pbtxt", kConfigs);
+  ASSERT_TRUE(plain) << plain.error();
+  EXPECT_FALSE(plain.value().spec.options.active_region);
+  auto automatic = parse_scene(with("active_region { tolerance: 1e-4 }"), "s.pbtxt", kConfigs);
+  ASSERT_TRUE(automatic) << automatic.error();
+  EXPECT_EQ(automatic.value().spec.options.active_far_every, 0);
+  const std::pair<const char*, const char*> bad[] = {
+      {"active_region { tolerance: 0 }", "tolerance must be a positive length in m (got 0)"},
+      {"active_region { tolerance: -1e-3 }", "tolerance must be a positive length"},
+      {"active_region { tolerance: inf }", "tolerance must be a positive length"},
+      {"active_region { tolerance: 1e-4 far_every: -2 }", "far_every must be -1 (frozen)"},
+      {"integrator: IMPLICIT_EULER active_region { tolerance: 1e-4 }",
+       "needs SYMPLECTIC_EULER or EXPLICIT_EULER"},
+  };
+  for (const auto& [solver, why] : bad) {
+    const std::string e = ErrorOf(with(solver));
+    EXPECT_NE(e.find("s.pbtxt:7:1: solver.active_region: "), std::string::npos) << solver << ": " << e;
+    EXPECT_NE(e.find(why), std::string::npos) << solver << ": " << e;
+  }
+}
+
 }  // namespace
 }  // namespace conica::io

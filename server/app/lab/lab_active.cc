@@ -29,15 +29,17 @@ void register_active_region(CLI::App& app, Runner* run) {
   cmd->add_option("--scene", o->scene, "scene file (.pbtxt)")->required();
   cmd->add_option("--probe-script", o->script, "CSV t,probe,x,y,z (s, index, m)")->required();
   cmd->add_option("--ticks", o->ticks, "number of ticks")->capture_default_str();
-  cmd->add_option("--tolerance", o->tolerance, "displacement tolerance sizing the region, m")
-      ->capture_default_str();
-  cmd->add_option("--far-every", o->far_every,
-                  "far field: one step every N ticks (0: the longest its stability bound allows, "
-                  "-1: frozen)")
-      ->capture_default_str();
+  CLI::Option* tol = cmd->add_option(
+      "--tolerance", o->tolerance,
+      "displacement tolerance sizing the region, m (default: the scene's active_region, else 1e-5)");
+  CLI::Option* far = cmd->add_option(
+      "--far-every", o->far_every,
+      "far field: one step every N ticks (0: the longest its stability bound allows, -1: frozen; "
+      "default: the scene's, else 0)");
   cmd->add_flag("--relative", o->relative, "x, y, z are fractions of the bounding box");
-  cmd->callback([o, run] {
-    *run = [o]() -> int {
+  cmd->callback([o, run, tol, far] {
+    const bool tol_given = tol->count() > 0, far_given = far->count() > 0;
+    *run = [o, tol_given, far_given]() -> int {
       auto loaded = io::load_model(o->scene);
       if (!loaded) {
         std::fprintf(stderr, "conica-lab active-region: %s\n", loaded.error().c_str());
@@ -68,6 +70,12 @@ void register_active_region(CLI::App& app, Runner* run) {
         }
         io::make_absolute(ps, lo, hi);
       }
+      // The scene's own active region gives the defaults; the reference integrates every node.
+      if (full.options.active_region) {
+        if (!tol_given) o->tolerance = full.options.active_tolerance;
+        if (!far_given) o->far_every = full.options.active_far_every;
+      }
+      full.options.active_region = false;
       Model active = full;
       active.options.active_region = true;
       active.options.active_tolerance = o->tolerance;
