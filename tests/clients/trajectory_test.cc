@@ -91,6 +91,27 @@ TEST(Scripts, PressApproachesPressesAndHolds) {
   EXPECT_NEAR(v.back().t, 0.6, 1e-12);
 }
 
+TEST(Trajectory, ReplayInterpolatesBetweenKnotsAtTheSampleRate) {
+  // Knots at 0, 0.01 and 0.0105 s (the last closer than a period) and a repeated time.
+  std::vector<TrajectoryRow> rows(4);
+  rows[0] = {0.0, 0, Vec3(0, 0, 0.05), 1};
+  rows[1] = {0.01, 0, Vec3(0.01, 0, 0.04), 2};
+  rows[2] = {0.0105, 0, Vec3(0.01, 0, 0.039), 3};
+  rows[3] = {0.0105, 0, Vec3(0.02, 0, 0.039), 4};
+  auto replay = make_replay(rows, 0.001);
+  const auto v = run(*replay);
+  // 0, 1, ..., 10 ms (11 samples on the first segment), then the two rows at 10.5 ms.
+  ASSERT_EQ(v.size(), 13u);
+  for (int k = 0; k <= 10; ++k) {
+    EXPECT_NEAR(v[k].t, 0.001 * k, 1e-12) << k;
+    EXPECT_NEAR(v[k].position.x(), 0.001 * k, 1e-12) << k;
+    EXPECT_NEAR(v[k].position.z(), 0.05 - 0.001 * k, 1e-12) << k;
+  }
+  EXPECT_EQ(v[11].position, rows[2].position);
+  EXPECT_EQ(v[12].position, rows[3].position);
+  EXPECT_EQ(run(*make_replay(rows, 0)).size(), 4u);  // dt <= 0: the rows alone
+}
+
 TEST(Scripts, RampSineSweep) {
   ScriptParams p;
   p.approach = 0;

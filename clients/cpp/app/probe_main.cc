@@ -113,7 +113,7 @@ int main(int argc, char** argv) {
     for (auto& [id, list] : by_probe) {
       ProbeRun run;
       run.id = id;
-      run.source = make_replay(std::move(list));
+      run.source = make_replay(std::move(list), p.dt);
       runs.push_back(std::move(run));
     }
   } else {

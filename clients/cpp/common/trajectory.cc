@@ -129,18 +129,31 @@ class CreepScript : public ProbeSource {
 
 class Replay : public ProbeSource {
  public:
-  explicit Replay(std::vector<TrajectoryRow> rows) : rows_(std::move(rows)) {}
+  Replay(std::vector<TrajectoryRow> rows, double dt) : rows_(std::move(rows)), dt_(dt) {}
   bool next(const Feedback*, Sample* out) override {
-    if (i_ >= rows_.size()) return false;
-    out->t = rows_[i_].t;
-    out->position = rows_[i_].position;
-    ++i_;
+    if (k_ >= rows_.size()) return false;
+    // The next row when it is at most one sample period ahead (a hair of slack for round-off),
+    // otherwise one period further along the straight line to it.
+    if (k_ == 0 || !(dt_ > 0) || rows_[k_].t - t_ <= dt_ * (1 + 1e-9)) {
+      t_ = rows_[k_].t;
+      out->t = t_;
+      out->position = rows_[k_].position;
+      ++k_;
+      return true;
+    }
+    const TrajectoryRow &a = rows_[k_ - 1], &b = rows_[k_];
+    t_ += dt_;
+    const double w = (t_ - a.t) / (b.t - a.t);
+    out->t = t_;
+    out->position = a.position + w * (b.position - a.position);
     return true;
   }
 
  private:
   std::vector<TrajectoryRow> rows_;
-  std::size_t i_ = 0;
+  double dt_;
+  std::size_t k_ = 0;  // next row to reach
+  double t_ = 0;       // s, time of the last sample
 };
 
 }  // namespace
@@ -182,8 +195,8 @@ std::unique_ptr<ProbeSource> make_script(const std::string& name, const ScriptPa
   return nullptr;
 }
 
-std::unique_ptr<ProbeSource> make_replay(std::vector<TrajectoryRow> rows_of_probe) {
-  return std::make_unique<Replay>(std::move(rows_of_probe));
+std::unique_ptr<ProbeSource> make_replay(std::vector<TrajectoryRow> rows_of_probe, double dt) {
+  return std::make_unique<Replay>(std::move(rows_of_probe), dt);
 }
 
 }  // namespace conica::client

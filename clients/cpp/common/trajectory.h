@@ -1,6 +1,6 @@
 // What a scripted probe does over time: a CSV trajectory or one of the built-in scripts.
 //
-// CSV trajectory: one row per sample, `t,probe,x,y,z` (s, 0-based probe index, m), read by the
+// CSV trajectory: one row per knot, `t,probe,x,y,z` (s, 0-based probe index, m), read by the
 // server's probe-script parser (server/io/probe_script.h) in its client format: an optional
 // header line starting with "t", '#' comments and blank lines are skipped, per probe time must
 // not go backwards, positions within 100 m (a millimetre file is refused). Errors name the file,
@@ -83,7 +83,9 @@ std::vector<std::string> script_names();
 std::unique_ptr<ProbeSource> make_script(const std::string& name, const ScriptParams& params,
                                          std::string* error);
 
-// Replays the rows of one probe (in file order).
-std::unique_ptr<ProbeSource> make_replay(std::vector<TrajectoryRow> rows_of_probe);
+// Replays the rows of one probe (in file order) as knots: every row is sent, and between two rows
+// further apart than dt (s) samples every dt follow the straight line between them, as the lab's
+// probe scripts do (server/io/probe_script.h). dt <= 0 sends the rows alone.
+std::unique_ptr<ProbeSource> make_replay(std::vector<TrajectoryRow> rows_of_probe, double dt);
 
 }  // namespace conica::client
