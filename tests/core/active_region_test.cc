@@ -4,6 +4,8 @@
 // and a long hold stays bounded.
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
+
 #include "core/body.h"
 #include "core/step.h"
 #include "tissue_bar.h"
@@ -242,6 +244,47 @@ TEST(ActiveRegionTest, FarIntervalBeyondTheStabilityBoundStaysBounded) {
   }
   EXPECT_EQ(s.counters.rollbacks, 0u) << "interval " << 4 * bound;
   EXPECT_GT(s.probes[0].contacts, 0);
+}
+
+TEST(ActiveRegionTest, SpectralBoundIsTheLargestEigenvalueOfTheStiffnessOverTheMass) {
+  // far_spectral_bound (Lanczos on the assembled linear-phase K) against an independent value: the
+  // largest eigenvalue of M^-1/2 K M^-1/2 with K from central differences of compute_forces at
+  // rest (every free axis of every node), solved densely.
+  const Model m = Bar(false, 2e-4);
+  std::vector<int> dof;  // node * 3 + axis of the free axes
+  for (int i = 0; i < m.num_nodes(); ++i)
+    for (int a = 0; a < 3; ++a)
+      if (m.free_axes[i][a] != 0 && m.inv_mass[i] > 0) dof.push_back(3 * i + a);
+  const int n = static_cast<int>(dof.size());
+  ASSERT_GT(n, 100);
+  Eigen::MatrixXd A(n, n);
+  State s = make_state(m);
+  Workspace ws(m);
+  const double h = 1e-7;  // m, well inside the linear phase (delta_t is millimetres)
+  std::vector<Vec3> plus(m.num_nodes());
+  for (int c = 0; c < n; ++c) {
+    const int i = dof[c] / 3, a = dof[c] % 3;
+    s.x[i][a] += h;
+    compute_forces(m, s, ws);
+    plus = ws.force;
+    s.x[i][a] -= 2 * h;
+    compute_forces(m, s, ws);
+    s.x[i][a] += h;
+    for (int r = 0; r < n; ++r) {
+      const int j = dof[r] / 3, b = dof[r] % 3;
+      // K = -dF/dx, scaled by the inverse square roots of the two masses.
+      A(r, c) = -(plus[j][b] - ws.force[j][b]) / (2 * h) * std::sqrt(m.inv_mass[i] * m.inv_mass[j]);
+    }
+  }
+  const double asym = (A - A.transpose()).norm() / A.norm();
+  EXPECT_LT(asym, 1e-6);
+  const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
+  const double lambda = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(S).eigenvalues().maxCoeff();
+  const double bound = far_spectral_bound(m);
+  std::printf("largest eigenvalue of M^-1 K: dense %.6g 1/s^2, Lanczos bound %.6g (%d dof)\n", lambda,
+              bound, n);
+  EXPECT_GE(bound, lambda * (1 - 1e-6));  // an upper bound (Ritz value plus residual)
+  EXPECT_LE(bound, lambda * 1.05);        // and a tight one
 }
 
 }  // namespace
