@@ -6,7 +6,9 @@ configs/block-20k.pbtxt), starts conica-server on private loopback ports for --s
 the top centre with conica-probe's press script (8 mm probe, 5 mm deep at 10 mm/s, held), and
 reads the server's own count of ticks and missed ticks and its last loop statistics (tick
 lateness and step time percentiles over its rolling window). A body is held when missed ticks
-stay <= --max-missed (fraction). Prints one table row per run; the scenes live in a temporary
+stay <= --max-missed (fraction, default 0.5 %: on a shared 2-core machine the smallest bodies
+already miss 0.1-0.4 % of an 8 s run to the machine, while a body the loop cannot hold misses
+several per cent). Prints one table row per run; the scenes live in a temporary
 folder.
 
     /usr/bin/python3 scripts/largest_body.py --cells 10 16 20 24 27 30 --seconds 8
@@ -93,7 +95,7 @@ def main():
     ap.add_argument("--cells", type=int, nargs="+", default=[10, 16, 20, 24, 27, 30])
     ap.add_argument("--seconds", type=float, default=8.0)
     ap.add_argument("--tolerance", type=float, default=3e-4, help="m, active region tolerance")
-    ap.add_argument("--max-missed", type=float, default=0.001)
+    ap.add_argument("--max-missed", type=float, default=0.005)
     ap.add_argument("--binary-dir", default=os.path.join(ROOT, "build", "bin"))
     ap.add_argument("--port", type=int, default=6755)
     ap.add_argument("--server-args", default="", help="extra conica-server flags")
