@@ -80,6 +80,10 @@ struct SolverOptions {
   // time, with the interval chosen from its stability bound; n > 0 forces that interval; -1
   // freezes it at its state (see step.h).
   int active_far_every = 0;
+  // Multi-rate: when a tick with the region is estimated to cost more than this fraction of a
+  // whole step, the whole body steps every tick until the estimate falls below 0.8 of it
+  // (infinity: never; see step.h).
+  double active_whole_body_cost = 0.85;
   double max_speed = 50;         // m/s: guard: faster nodes mean the step blew up
 };
 

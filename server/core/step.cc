@@ -447,7 +447,7 @@ void forces_active(const Model& m, State& s, Workspace& ws) {
 
 void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
   const int nn = m.num_nodes();
-  if (m.options.active_region && ws.num_active >= 0 && !with_jacobian) {
+  if (m.options.active_region && ws.num_active >= 0 && !with_jacobian && !ws.whole_body) {
     forces_active(m, s, ws);
     contact_forces(m, s, ws, false, ws.far_every > 0 ? &ws.awake_list : nullptr);
     return;
@@ -474,7 +474,7 @@ void relax_maxwell(const Model& m, State& s, double h) {
 // Projects springs shorter than their minimum length back to it (mass-weighted) and removes the
 // approaching part of their relative velocity.
 void hard_stop(const Model& m, State& s, Workspace& ws) {
-  if (m.options.active_region && ws.num_active >= 0 &&
+  if (m.options.active_region && ws.num_active >= 0 && !ws.whole_body &&
       m.options.integrator != Integrator::kImplicitEuler) {
     // Only springs with an awake end can have moved.
     int n = 0;
@@ -525,7 +525,7 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
   const double h = detail::substep_of(m);
   forces_impl(m, s, ws, false);
   const int nn = m.num_nodes();
-  if (!m.options.active_region) {
+  if (!m.options.active_region || ws.whole_body) {
     advance_nodes(nn, h, symplectic, ws.force.front().data(), m.inv_mass.data(),
                   m.free_axes.front().data(), s.x.front().data(), s.v.front().data());
     return;
@@ -967,6 +967,28 @@ void set_probe(State& state, int probe, const Vec3& center, bool active) {
   state.probes[probe].active = active;
 }
 
+// The cost of a multi-rate tick with the current region, as a fraction of a whole step: the
+// springs the awake side evaluates (lattices: whole chunks holding an awake spring when the region
+// is large, else its list at the scalar law's higher price per spring) plus one share of the far
+// springs. Checked against measured step times on the 21,952-node block and the liver
+// (docs/performance.md, "Active region").
+double region_cost(const Model& m, const Workspace& ws) {
+  const double ns = std::max(1, m.num_springs());
+  const double N = std::max(1, ws.far_every);
+  if (ws.runs.empty()) return (ws.num_active + ws.slow.size() / N) / ns;
+  int awake = 0, slow = 0;
+  for (size_t c = 0; c < ws.chunks.size(); ++c) {
+    awake += ws.chunk_awake[c];
+    slow += ws.chunk_slow[c];
+  }
+  const double C = std::max<size_t>(1, ws.chunks.size());
+  const bool chunked = 8 * ws.num_active > m.num_springs();
+  // The chunked path also passes over every node and checks the hard stop spring by spring along
+  // the active list: about one listed spring's price per active spring.
+  return (chunked ? awake / C + ws.num_active / ns : kListSpringCost * ws.num_active / ns) +
+         slow / C / N;
+}
+
 // Chooses the awake nodes for this tick (see step.h) and rebuilds the active spring list when the
 // set changed.
 void update_region(const Model& m, State& s, Workspace& ws) {
@@ -1193,9 +1215,23 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
   const bool region = m.options.active_region && m.options.integrator != Integrator::kImplicitEuler;
   // Multi-rate far field: the region is chosen at the start of an interval, the far field steps at
   // its end; in between only the awake nodes change, and only they are saved and checked.
-  const bool multirate = region && ws.far_every > 0;
+  bool multirate = region && ws.far_every > 0;
+  if (region && (!multirate || ws.far_phase == 0 || ws.num_active < 0)) {
+    update_region(m, s, ws);
+    // A region that costs about a whole step is not worth its bookkeeping: the whole body steps
+    // every tick until the region's cost falls well below it (hysteresis). The switch happens at
+    // an interval's start, when no far share or impulse is pending.
+    if (multirate) {
+      ws.region_cost = region_cost(m, ws);
+      const double enter = m.options.active_whole_body_cost;
+      ws.whole_body = ws.region_cost > (ws.whole_body ? kRegionResumeFraction * enter : enter);
+    }
+  }
+  if (multirate && ws.whole_body) {
+    multirate = false;
+    s.counters.awake_nodes = static_cast<std::uint64_t>(m.num_nodes());
+  }
   const bool far_tick = multirate && ws.far_phase == ws.far_every - 1;
-  if (region && (!multirate || ws.far_phase == 0 || ws.num_active < 0)) update_region(m, s, ws);
   const bool partial = multirate && !far_tick;
   if (partial) {
     for (int i : ws.awake_list) {

@@ -55,6 +55,12 @@
 // the nodes. A tick costs the awake side (its springs, its nodes and the sleeping nodes they pull,
 // the border) plus about 1/N of the far springs, never a whole far step.
 //
+// A region that grows until a multi-rate tick costs about a whole step (options.
+// active_whole_body_cost of it, 0.85 by default, estimated from the springs the awake side and one
+// far share evaluate) is dropped: the whole body steps every tick, as without the active region,
+// until the estimate falls below kRegionResumeFraction of that, checked every tick; the switch is made at an interval's start, where no far
+// share or impulse is pending, so it is exact.
+//
 // Solid height: the law's stiffness cap (ConicalLaw) keeps k_t finite, and a hard stop projects
 // any spring shorter than max(l0 - S/b, min_length_fraction l0) back to that length, removing
 // the approaching relative velocity. The implicit solver's line search never takes a Newton step
@@ -144,6 +150,10 @@ struct Workspace {
   std::vector<double> far_fx, far_fy, far_fz;     // (num_nodes) N, far springs' forces of this
                                                   // interval, summed over its ticks
   int far_springs_evaluated = 0;                  // springs the last tick's far share evaluated
+  double region_cost = 0;                         // the last estimate of a multi-rate tick's cost
+                                                  // (fraction of a whole step)
+  bool whole_body = false;                        // the region costs about a whole step: every
+                                                  // node steps every tick (multi-rate only)
   // Incremental region updates (lattices, multi-rate).
   std::vector<int> node_spring_start, node_springs;  // (num_nodes + 1), (2 num_springs): springs
                                                      // of node i: [start[i], start[i + 1])
@@ -183,6 +193,12 @@ enum class StepStatus { kOk, kRolledBack };
 // On NaN / Inf or a node faster than max_speed the state returns to the last good one (velocities
 // zeroed), counters record it, and the tick still advances.
 StepStatus step(const Model& model, State& state, Workspace& ws);
+
+// The region is used again when its cost estimate falls below this fraction of
+// options.active_whole_body_cost; a listed spring (scalar law, gathered) costs about
+// kListSpringCost times a spring of the chunked whole step.
+inline constexpr double kRegionResumeFraction = 0.8;
+inline constexpr double kListSpringCost = 4.0;
 
 // The surface contact depth is capped at this multiple of a node's radial depth in the sphere.
 inline constexpr double kContactDepthCap = 2.0;

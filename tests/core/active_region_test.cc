@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <limits>
 
 #include "core/body.h"
 #include "core/step.h"
@@ -13,10 +14,13 @@
 namespace conica {
 namespace {
 
-// The bar of tissue_bar.h, 16 x 4 x 2 cells.
-Model Bar(bool active, double tolerance, int far_every = -1) {
+// The bar of tissue_bar.h, 16 x 4 x 2 cells. Its regions are a large share of so small a body, so
+// the switch to whole-body steps is off unless asked for: these tests are about the region.
+Model Bar(bool active, double tolerance, int far_every = -1, bool whole_body_switch = false) {
+  BodySpec b = TissueBar({16, 4, 2}, active, tolerance, far_every);
+  if (!whole_body_switch) b.options.active_whole_body_cost = std::numeric_limits<double>::infinity();
   Model m;
-  EXPECT_EQ(build_model(TissueBar({16, 4, 2}, active, tolerance, far_every), &m), "");
+  EXPECT_EQ(build_model(b, &m), "");
   return m;
 }
 
@@ -244,6 +248,45 @@ TEST(ActiveRegionTest, FarIntervalBeyondTheStabilityBoundStaysBounded) {
   }
   EXPECT_EQ(s.counters.rollbacks, 0u) << "interval " << 4 * bound;
   EXPECT_GT(s.probes[0].contacts, 0);
+}
+
+TEST(ActiveRegionTest, ARegionAsCostlyAsTheWholeBodyStepsTheWholeBodyUntilItShrinks) {
+  // A tolerance of 0.1 um wakes nearly the whole bar: the region's cost estimate passes the
+  // threshold and the whole body steps every tick, agreeing with the full simulation; once the
+  // probe is withdrawn the region falls asleep and the multi-rate region is used again.
+  const Model full = Bar(false, 1e-7);
+  const Model m = Bar(true, 1e-7, 0, true);
+  State a = make_state(full), s = make_state(m);
+  Workspace wa(full), ws(m);
+  ASSERT_GT(ws.far_every, 0);
+  double fmax = 0, err = 0;
+  int whole = 0;
+  for (int t = 0; t < 600; ++t) {
+    const Vec3 p = Press(0.08, 0.003 * std::min(1.0, t / 300.0));
+    set_probe(a, 0, p);
+    set_probe(s, 0, p);
+    step(full, a, wa);
+    step(m, s, ws);
+    fmax = std::max(fmax, a.probes[0].force.norm());
+    err = std::max(err, (a.probes[0].force - s.probes[0].force).norm());
+    whole += ws.whole_body;
+  }
+  std::printf("whole body on %d of 600 ticks, last cost estimate %.2f, force error %.3g %%\n",
+              whole, ws.region_cost, 100 * err / fmax);
+  EXPECT_TRUE(ws.whole_body);
+  EXPECT_GT(ws.region_cost, kRegionResumeFraction * m.options.active_whole_body_cost);
+  EXPECT_EQ(s.counters.awake_nodes, static_cast<std::uint64_t>(m.num_nodes()));
+  ASSERT_GT(fmax, 0);
+  EXPECT_LT(err / fmax, 0.01);
+  // Withdrawn: nothing is near a probe any more, the region empties and its cost drops.
+  for (int t = 0; t < 400; ++t) {
+    set_probe(s, 0, Vec3(0.08, 0.02, 0.1), false);
+    step(m, s, ws);
+  }
+  EXPECT_FALSE(ws.whole_body);
+  EXPECT_LT(ws.region_cost, kRegionResumeFraction * m.options.active_whole_body_cost);
+  EXPECT_LT(s.counters.awake_nodes, static_cast<std::uint64_t>(m.num_nodes()) / 2);
+  EXPECT_EQ(s.counters.rollbacks, 0u);
 }
 
 TEST(ActiveRegionTest, SpectralBoundIsTheLargestEigenvalueOfTheStiffnessOverTheMass) {

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cstdlib>
+#include <limits>
 #include <new>
 
 #include "core/body.h"
@@ -92,8 +93,11 @@ TEST(AllocationTest, StepAllocatesNothing) {
 
 TEST(AllocationTest, ActiveRegionStepAllocatesNothing) {
   // Multi-rate far field: far steps, region rebuilds as the probe moves and presses, frozen too.
+  // The region itself (the whole-body switch off; on, a region this large on so small a bar is
+  // stepped whole), then the switch between the two while counting.
   for (int far_every : {0, 3, -1}) {
-    const BodySpec b = TissueBar({12, 3, 2}, true, 2e-4, far_every);
+    BodySpec b = TissueBar({12, 3, 2}, true, 2e-4, far_every);
+    b.options.active_whole_body_cost = std::numeric_limits<double>::infinity();
     Model m;
     ASSERT_EQ(build_model(b, &m), "");
     State s = make_state(m);
@@ -114,6 +118,27 @@ TEST(AllocationTest, ActiveRegionStepAllocatesNothing) {
     EXPECT_NE(awake_min, awake_max);  // the region did change while counting
     EXPECT_EQ(s.counters.rollbacks, 0u);
   }
+  const BodySpec b = TissueBar({12, 3, 2}, true, 1e-7, 0);  // 0.1 um: wakes nearly everything
+  Model m;
+  ASSERT_EQ(build_model(b, &m), "");
+  State s = make_state(m);
+  Workspace ws(m);
+  for (int i = 0; i < 5; ++i) step(m, s, ws);  // warm up, probe away
+  int whole = 0, region = 0;
+  const long allocations = AllocationsDuring([&] {
+    for (int i = 0; i < 600; ++i) {
+      // Press and hold, then withdraw: the region grows past the switch and empties again.
+      const bool on = i < 400;
+      set_probe(s, 0, Vec3(0.02, 0.015, 0.025 - 1e-5 * std::min(i, 200)), on);
+      step(m, s, ws);
+      whole += ws.whole_body;
+      region += !ws.whole_body;
+    }
+  });
+  EXPECT_EQ(allocations, 0);
+  EXPECT_GT(whole, 0);
+  EXPECT_GT(region, 0);
+  EXPECT_FALSE(ws.whole_body);
 }
 
 }  // namespace

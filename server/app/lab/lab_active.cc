@@ -89,7 +89,8 @@ void register_active_region(CLI::App& app, Runner* run) {
         std::vector<Vec3> force;  // (ticks x probes)
         std::vector<double> tick_us;  // (ticks) step time of each tick, us
         double seconds = 0;
-        std::uint64_t awake_sum = 0, rollbacks = 0;
+        std::uint64_t awake_sum = 0, rollbacks = 0, whole_body_ticks = 0;
+        double cost_sum = 0;  // region cost estimates, summed over ticks
         int far_every = 0, far_max_every = 0, measured_every = 0;
         double far_lambda = 0, damping_ratio = 0, far_raise = 1;
       };
@@ -111,6 +112,8 @@ void register_active_region(CLI::App& app, Runner* run) {
           r.tick_us.push_back(1e6 * dt_s);
           for (const ProbeState& p : s.probes) r.force.push_back(p.force);
           r.awake_sum += m.options.active_region ? s.counters.awake_nodes : m.num_nodes();
+          r.whole_body_ticks += ws.whole_body;
+          r.cost_sum += ws.region_cost;
         }
         r.rollbacks = s.counters.rollbacks;
         r.far_every = ws.far_every;
@@ -140,6 +143,12 @@ void register_active_region(CLI::App& app, Runner* run) {
                   1e6 * b.seconds / o->ticks, double(b.awake_sum) / o->ticks,
                   100.0 * b.awake_sum / (double(o->ticks) * full.num_nodes()),
                   (unsigned long)b.rollbacks);
+      if (b.far_every > 0)
+        std::printf("region: estimated cost %.2f of a whole step (mean); whole body stepped on %lu "
+                    "of %ld ticks (above %.2f, back below %.2f)\n",
+                    b.cost_sum / o->ticks, (unsigned long)b.whole_body_ticks, o->ticks,
+                    active.options.active_whole_body_cost,
+                    kRegionResumeFraction * active.options.active_whole_body_cost);
       if (b.far_every > 0)
         std::printf("far field: one step every %d ticks (bound from the measured spectrum %d: "
                     "omega_max %.0f rad/s, damping bound %.0f 1/s, far inertia x %.3f; Gershgorin at the "
