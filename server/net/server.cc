@@ -595,6 +595,16 @@ std::string Server::prepare(const BodySpec& spec, std::unique_ptr<Model>* out,
   }
   std::nth_element(cost.begin(), cost.begin() + 25, cost.end());
   const double median = cost[25];
+  if (m->options.active_region) {
+    if (m->options.integrator == Integrator::kImplicitEuler)
+      spdlog::warn("active region ignored: the implicit integrator steps every node");
+    else if (ws.far_every > 0)
+      spdlog::info("active region: tolerance {} m; far field one step every {} ticks (measured "
+                   "stability bound {}, far inertia x {:.3f}); the step below is measured at rest",
+                   m->options.active_tolerance, ws.far_every, ws.measured_every, ws.far_raise);
+    else
+      spdlog::info("active region: tolerance {} m; far field frozen", m->options.active_tolerance);
+  }
   const double period_us = 1e6 * period_s;
   *step_us = median;
   if (median > period_us && options_.refuse_slow_scene)
