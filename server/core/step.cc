@@ -384,6 +384,12 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
   }
 }
 
+// The active region decides what a tick touches: it is built and not handed over to whole-body
+// steps.
+bool region_in_use(const Model& m, const Workspace& ws) {
+  return m.options.active_region && ws.num_active >= 0 && !ws.whole_body;
+}
+
 // Forces of the active region only: springs with an awake end, one at a time (scalar law). Sleeping
 // nodes on the region's boundary collect the pull of the awake springs; one pulled harder than the
 // tolerance is marked to wake.
@@ -447,7 +453,7 @@ void forces_active(const Model& m, State& s, Workspace& ws) {
 
 void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
   const int nn = m.num_nodes();
-  if (m.options.active_region && ws.num_active >= 0 && !with_jacobian && !ws.whole_body) {
+  if (region_in_use(m, ws) && !with_jacobian) {
     forces_active(m, s, ws);
     contact_forces(m, s, ws, false, ws.far_every > 0 ? &ws.awake_list : nullptr);
     return;
@@ -474,8 +480,7 @@ void relax_maxwell(const Model& m, State& s, double h) {
 // Projects springs shorter than their minimum length back to it (mass-weighted) and removes the
 // approaching part of their relative velocity.
 void hard_stop(const Model& m, State& s, Workspace& ws) {
-  if (m.options.active_region && ws.num_active >= 0 && !ws.whole_body &&
-      m.options.integrator != Integrator::kImplicitEuler) {
+  if (region_in_use(m, ws) && m.options.integrator != Integrator::kImplicitEuler) {
     // Only springs with an awake end can have moved.
     int n = 0;
     for (int q = 0; q < ws.num_active; ++q) {
@@ -525,12 +530,12 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
   const double h = detail::substep_of(m);
   forces_impl(m, s, ws, false);
   const int nn = m.num_nodes();
-  if (!m.options.active_region || ws.whole_body) {
+  if (!region_in_use(m, ws)) {
     advance_nodes(nn, h, symplectic, ws.force.front().data(), m.inv_mass.data(),
                   m.free_axes.front().data(), s.x.front().data(), s.v.front().data());
     return;
   }
-  if (ws.far_every > 0 && ws.num_active >= 0) {
+  if (ws.far_every > 0) {
     // Multi-rate: the border keeps the impulse of the awake springs for its next far step.
     for (int i : ws.border) ws.impulse[i] += h * ws.force[i];
     for (int i : ws.awake_list) {
@@ -698,24 +703,24 @@ Workspace::Workspace(const Model& m) {
     // Measured instead: the largest eigenvalue of M^-1 K (linear phase, at rest) by Lanczos, and
     // the dampers' explicit damping, which lowers the bound (see far_spectral_bound).
     measured_every = 0;
+    double ratio = 0;  // largest dashpot / stiffness ratio of a group, s
+    for (const SpringGroup& g : m.groups) {
+      const double k = (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k;
+      if (k > 0) ratio = std::max(ratio, g.card.damping / k);
+    }
+    // Symplectic Euler with explicit damping g on a mode omega^2 = lambda is stable while
+    // H^2 lambda + 2 H g < 4; with the 0.9 margin on H omega: <= 1.8^2. An inertia raised by a
+    // factor s on every far node divides lambda and the dashpots' part of g by s: the smallest s
+    // that keeps an interval of n ticks stable.
+    auto raise_for = [&](int n) {
+      const double H = n * dt, room = 1.8 * 1.8 - 2 * H * m.options.mass_damping;
+      if (!(room > 0)) return std::numeric_limits<double>::infinity();
+      return std::max(1.0, (H * H * far_lambda + 2 * H * ratio * far_lambda) / room);
+    };
     if (m.options.active_region && m.options.active_far_every >= 0) {
-      double ratio = 0;  // largest dashpot / stiffness ratio of a group, s
-      for (const SpringGroup& g : m.groups) {
-        const double k = (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k;
-        if (k > 0) ratio = std::max(ratio, g.card.damping / k);
-      }
       far_lambda = far_spectral_bound(m);
-      const double gamma = m.options.mass_damping + ratio * far_lambda;
-      far_gamma = gamma;
-      // Symplectic Euler with explicit damping g on a mode omega^2 = lambda is stable while
-      // H^2 lambda + 2 H g < 4; with the 0.9 margin on H omega: <= 1.8^2. An inertia raised by a
-      // factor s on every far node divides lambda and the dashpots' part of g by s; the interval
-      // is the longest that needs s <= 1.1 (far frequencies within 5 %).
-      auto raise_for = [&](int n) {
-        const double H = n * dt, room = 1.8 * 1.8 - 2 * H * m.options.mass_damping;
-        if (!(room > 0)) return std::numeric_limits<double>::infinity();
-        return std::max(1.0, (H * H * far_lambda + 2 * H * ratio * far_lambda) / room);
-      };
+      far_gamma = m.options.mass_damping + ratio * far_lambda;
+      // The interval is the longest that needs s <= 1.1 (far frequencies within 5 %).
       for (int n = 1; n < 64 && raise_for(n) <= 1.1; ++n) measured_every = n;
       // A mesh whose few lightest, stiffest nodes set the spectrum keeps the typical node's
       // interval with their inertia raised (below) when that is longer.
@@ -729,13 +734,7 @@ Workspace::Workspace(const Model& m) {
     const bool raise = measured_every == 0 || far_every > measured_every;
     far_raise = 1;
     if (!raise && far_every > 0) {
-      const double Hf = far_every * dt, room = 1.8 * 1.8 - 2 * Hf * m.options.mass_damping;
-      double ratio = 0;
-      for (const SpringGroup& g : m.groups) {
-        const double k = (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k;
-        if (k > 0) ratio = std::max(ratio, g.card.damping / k);
-      }
-      far_raise = std::max(1.0, (Hf * Hf * far_lambda + 2 * Hf * ratio * far_lambda) / room);
+      far_raise = raise_for(far_every);
       for (size_t i = 0; i < nn; ++i) far_inv_mass[i] = m.inv_mass[i] / far_raise;
     }
     for (size_t i = 0; i < nn && raise; ++i)
