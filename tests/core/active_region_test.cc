@@ -75,36 +75,50 @@ struct Comparison {
   std::uint64_t rollbacks = 0;
 };
 
-// Presses 3 mm at the middle of the bar in 300 ticks and holds; probe force compared tick by tick.
-Comparison Compare(const Model& full, const Model& part, int ticks) {
-  State a = make_state(full), b = make_state(part);
-  Workspace wa(full), wb(part);
-  Comparison c;
-  double fmax = 0;
-  std::uint64_t awake = 0;
-  for (int t = 0; t < ticks; ++t) {
+// The full simulation and a partial one (active region) driven by the same press, tick by tick:
+// 3 mm at the middle of the bar in 300 ticks, then held; the probe forces compared every tick.
+struct SideBySide {
+  const Model& full;
+  const Model& part;
+  State a, b;
+  Workspace wa, wb;
+  double fmax = 0;  // N, largest |F_full|
+  double err = 0;   // N, largest |F_full - F_part|
+
+  SideBySide(const Model& f, const Model& p)
+      : full(f), part(p), a(make_state(f)), b(make_state(p)), wa(f), wb(p) {}
+  void tick(int t) {
     const Vec3 p = Press(0.08, 0.003 * std::min(1.0, t / 300.0));
     set_probe(a, 0, p);
     set_probe(b, 0, p);
     step(full, a, wa);
     step(part, b, wb);
     fmax = std::max(fmax, a.probes[0].force.norm());
-    c.error = std::max(c.error, (a.probes[0].force - b.probes[0].force).norm());
-    awake += b.counters.awake_nodes;
+    err = std::max(err, (a.probes[0].force - b.probes[0].force).norm());
+  }
+};
+
+Comparison Compare(const Model& full, const Model& part, int ticks) {
+  SideBySide run(full, part);
+  Comparison c;
+  std::uint64_t awake = 0;
+  for (int t = 0; t < ticks; ++t) {
+    run.tick(t);
+    awake += run.b.counters.awake_nodes;
     if (t < ticks - 300) continue;
     double da = 0, db = 0;
     for (int i = 0; i < full.num_nodes(); ++i)
       if (full.rest[i].x() >= 0.15 && full.rest[i].z() >= 0.02) {
-        da = std::max(da, (a.x[i] - full.rest[i]).norm());
-        db = std::max(db, (b.x[i] - part.rest[i]).norm());
+        da = std::max(da, (run.a.x[i] - full.rest[i]).norm());
+        db = std::max(db, (run.b.x[i] - part.rest[i]).norm());
       }
     c.far_full += da / 300;
     c.far_active += db / 300;
   }
-  c.peak_force = fmax;
-  c.error /= fmax;
+  c.peak_force = run.fmax;
+  c.error = run.err / run.fmax;
   c.awake_fraction = double(awake) / (double(ticks) * full.num_nodes());
-  c.rollbacks = b.counters.rollbacks;
+  c.rollbacks = run.b.counters.rollbacks;
   return c;
 }
 
@@ -156,21 +170,15 @@ TEST(ActiveRegionTest, FarStepIsSpreadOverItsInterval) {
   const double tol = 2e-4;
   const Model full = Bar(false, tol);
   const Model m = Bar(true, tol, 4);
-  State a = make_state(full), s = make_state(m);
-  Workspace wa(full), ws(m);
+  SideBySide run(full, m);
+  const State& s = run.b;
+  const Workspace& ws = run.wb;
   ASSERT_EQ(ws.far_every, 4);
   const int slack = ws.runs.empty() ? 1 : Workspace::kChunkSprings;
   int worst_share = 0, intervals = 0;
-  double fmax = 0, err = 0;
   long in_interval = 0, last_far = 0;
   for (int t = 0; t < 600; ++t) {
-    const Vec3 p = Press(0.08, 0.003 * std::min(1.0, t / 300.0));
-    set_probe(a, 0, p);
-    set_probe(s, 0, p);
-    step(full, a, wa);
-    step(m, s, ws);
-    fmax = std::max(fmax, a.probes[0].force.norm());
-    err = std::max(err, (a.probes[0].force - s.probes[0].force).norm());
+    run.tick(t);
     // Far springs of this interval (both ends asleep; lattices: springs of chunks holding one).
     long far = 0;
     if (ws.runs.empty()) {
@@ -202,11 +210,11 @@ TEST(ActiveRegionTest, FarStepIsSpreadOverItsInterval) {
     }
   }
   std::printf("far springs %ld of %d, largest share per tick %d, %d intervals, error %.3g %%\n",
-              last_far, m.num_springs(), worst_share, intervals, 100 * err / fmax);
+              last_far, m.num_springs(), worst_share, intervals, 100 * run.err / run.fmax);
   EXPECT_EQ(intervals, 150);
   EXPECT_EQ(s.counters.rollbacks, 0u);
-  ASSERT_GT(fmax, 0);
-  EXPECT_LT(err / fmax, 0.01);
+  ASSERT_GT(run.fmax, 0);
+  EXPECT_LT(run.err / run.fmax, 0.01);
 }
 
 TEST(ActiveRegionTest, MultiRateHoldStaysBounded) {
@@ -256,28 +264,22 @@ TEST(ActiveRegionTest, ARegionAsCostlyAsTheWholeBodyStepsTheWholeBodyUntilItShri
   // probe is withdrawn the region falls asleep and the multi-rate region is used again.
   const Model full = Bar(false, 1e-7);
   const Model m = Bar(true, 1e-7, 0, true);
-  State a = make_state(full), s = make_state(m);
-  Workspace wa(full), ws(m);
+  SideBySide run(full, m);
+  State& s = run.b;
+  Workspace& ws = run.wb;
   ASSERT_GT(ws.far_every, 0);
-  double fmax = 0, err = 0;
   int whole = 0;
   for (int t = 0; t < 600; ++t) {
-    const Vec3 p = Press(0.08, 0.003 * std::min(1.0, t / 300.0));
-    set_probe(a, 0, p);
-    set_probe(s, 0, p);
-    step(full, a, wa);
-    step(m, s, ws);
-    fmax = std::max(fmax, a.probes[0].force.norm());
-    err = std::max(err, (a.probes[0].force - s.probes[0].force).norm());
+    run.tick(t);
     whole += ws.whole_body;
   }
   std::printf("whole body on %d of 600 ticks, last cost estimate %.2f, force error %.3g %%\n",
-              whole, ws.region_cost, 100 * err / fmax);
+              whole, ws.region_cost, 100 * run.err / run.fmax);
   EXPECT_TRUE(ws.whole_body);
   EXPECT_GT(ws.region_cost, kRegionResumeFraction * m.options.active_whole_body_cost);
   EXPECT_EQ(s.counters.awake_nodes, static_cast<std::uint64_t>(m.num_nodes()));
-  ASSERT_GT(fmax, 0);
-  EXPECT_LT(err / fmax, 0.01);
+  ASSERT_GT(run.fmax, 0);
+  EXPECT_LT(run.err / run.fmax, 0.01);
   // Withdrawn: nothing is near a probe any more, the region empties and its cost drops.
   for (int t = 0; t < 400; ++t) {
     set_probe(s, 0, Vec3(0.08, 0.02, 0.1), false);

@@ -43,6 +43,18 @@ Curve Read(const std::string& name) {
   return c;
 }
 
+// The model's own curve at `grid` with multiplicative Gaussian noise of relative size `noise`
+// (seeded: the same curve every run).
+Curve Noisy(const std::vector<double>& grid, const std::vector<double>& force, double noise,
+            unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n01;
+  Curve c;
+  for (size_t k = 0; k < grid.size(); ++k)
+    c.push_back({grid[k], force[k] * (1 + noise * n01(rng))});
+  return c;
+}
+
 std::vector<Curve> Tests(const std::string& recipe, char series) {
   std::vector<Curve> out;
   for (int i = 1; i <= 5; ++i)
@@ -100,10 +112,7 @@ TEST(CalibrationTest, RecoversKnownCards) {
     for (int k = 1; k <= 200; ++k) grid.push_back(o.max_strain * 0.03 * k / 200);
     const auto truth = surrogate_force(spec, card_with_shape(base, want), grid);
     for (double noise : {0.0, 0.01}) {
-      std::mt19937 rng(7);
-      std::normal_distribution<double> n01;
-      Curve c;
-      for (int k = 0; k < 200; ++k) c.push_back({grid[k], truth[k] * (1 + noise * n01(rng))});
+      const Curve c = Noisy(grid, truth, noise, 7);
       const FitResult r = calibrate(spec, {c}, o);
       ASSERT_EQ(r.error, "");
       if (noise == 0) {
@@ -147,10 +156,7 @@ TEST(CalibrationTest, RecoversAKnownPrecompression) {
   for (int k = 1; k <= 200; ++k) grid.push_back(o.max_strain * 0.03 * k / 200);
   const auto truth = surrogate_force(spec, truth_card, grid);
   for (double noise : {0.0, 0.01}) {
-    std::mt19937 rng(7);
-    std::normal_distribution<double> n01;
-    Curve c;
-    for (int k = 0; k < 200; ++k) c.push_back({grid[k], truth[k] * (1 + noise * n01(rng))});
+    const Curve c = Noisy(grid, truth, noise, 7);
     const FitResult r = calibrate(spec, {c}, o);
     ASSERT_EQ(r.error, "");
     std::printf("noise %.2f: E_c %.6g, taper %.6g, stroke %.6g, pre-compression %.6g S; error %.4f %%\n",
@@ -253,10 +259,7 @@ TEST(CalibrationTest, RecoversKnownTwoCardBodies) {
                                           card_with_shape(base, want[1])});
   const auto truth = surrogate_force(spec, groups, grid);
   for (double noise : {0.0, 0.01}) {
-    std::mt19937 rng(11);
-    std::normal_distribution<double> n01;
-    Curve c;
-    for (int k = 0; k < 200; ++k) c.push_back({grid[k], truth[k] * (1 + noise * n01(rng))});
+    const Curve c = Noisy(grid, truth, noise, 11);
     const FitResult r = calibrate(spec, {c}, o);
     ASSERT_EQ(r.error, "");
     ASSERT_EQ(r.shapes.size(), 2u);
