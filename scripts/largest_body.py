@@ -46,7 +46,8 @@ solver {{
 """
 
 
-def run(binary_dir, scene_path, seconds, port, extra):
+def run(binary_dir, scene_path, L, seconds, port, extra):
+    """Serves scene_path (a block L m across) and presses its top centre."""
     server = subprocess.Popen(
         [os.path.join(binary_dir, "conica-server"), "--scene", scene_path, "--seconds", str(seconds),
          "--stats-seconds", "1", "--probe-endpoint", f"tcp://127.0.0.1:{port}",
@@ -63,7 +64,6 @@ def run(binary_dir, scene_path, seconds, port, extra):
         lines.append(line)
         if "serving:" in line or time.monotonic() - start > 120:
             break
-    L = float(re.search(r'x: ([0-9.e-]+)', open(scene_path).read()).group(1))
     probe = subprocess.run(
         [os.path.join(binary_dir, "conica-probe"), "--endpoint", f"tcp://127.0.0.1:{port}",
          "--script", "press", "--at", f"{L / 2},{L / 2},{L + 0.008}", "--axis", "-z",
@@ -112,7 +112,7 @@ def main():
                     f.write(SCENE.format(n=n, L=f"{L:.6g}",
                                          active=f"active_region {{ tolerance: {args.tolerance} }}"
                                          if active else ""))
-                r = run(args.binary_dir, path, args.seconds, args.port, args.server_args.split())
+                r = run(args.binary_dir, path, L, args.seconds, args.port, args.server_args.split())
                 nodes = (n + 1) ** 3
                 label = f"{args.tolerance:g} m" if active else "off"
                 if r is None:
