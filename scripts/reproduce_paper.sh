@@ -27,10 +27,10 @@ BUILD_DIR="$BUILD" scripts/make_law_figures.sh
 for recipe in EF30_0T EF10_0T; do
   data=()
   for f in "$DATA/$recipe"/*.csv; do data+=(--data "$f"); done
-  "$LAB" calibrate --scene configs/phantom-cylinder.pbtxt "${data[@]}" --max-strain 0.5 \
+  "$LAB" calibrate --scene configs/phantom-cylinder-springs.pbtxt "${data[@]}" --max-strain 0.5 \
     --no-precompression --full-iterations 0 --out "$FIG/repro-fit-$recipe.card" --curves "$FIG/repro-fit-$recipe.csv" \
     | tee "$tmp/fit-$recipe.log" | tail -4
-  "$LAB" calibrate --scene configs/phantom-cylinder.pbtxt "${data[@]}" --max-strain 0.25 \
+  "$LAB" calibrate --scene configs/phantom-cylinder-springs.pbtxt "${data[@]}" --max-strain 0.25 \
     --no-precompression --full-iterations 2 --out "$FIG/repro-fit25-$recipe.card" \
     --curves "$FIG/repro-fit25-$recipe.csv" | tee "$tmp/fit25-$recipe.log" | tail -4
   "$PY" scripts/plot_curves.py --out "$FIG/repro-fit-$recipe.png" \
@@ -46,7 +46,7 @@ for recipe in EF30_0T EF10_0T; do
   data=()
   for f in "$DATA/$recipe"/*.csv; do data+=(--data "$f"); done
   for k in 2 3; do
-    "$LAB" calibrate --scene configs/phantom-cylinder.pbtxt "${data[@]}" --max-strain 0.5 \
+    "$LAB" calibrate --scene configs/phantom-cylinder-springs.pbtxt "${data[@]}" --max-strain 0.5 \
       --cards $k --no-precompression --full-iterations 3 --out "$FIG/repro-fitk$k-$recipe.card" \
       --curves "$FIG/repro-fitk$k-$recipe.csv" | tee "$tmp/fitk$k-$recipe.log" | tail -2
   done

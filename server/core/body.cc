@@ -1,4 +1,5 @@
 #include "core/body.h"
+#include "core/volume.h"
 
 #include <Eigen/Geometry>
 
@@ -212,6 +213,15 @@ std::string build_model(const BodySpec& spec, Model* out) {
   }
   for (const auto& n : mesh.nodes)
     if (!n.allFinite()) return "the mesh has a non-finite node coordinate";
+  if (!(spec.bulk_modulus >= 0) || !std::isfinite(spec.bulk_modulus))
+    return "bulk_modulus must be >= 0 Pa (got " + fmt(spec.bulk_modulus) + ")";
+  if (!(spec.spread_modulus >= 0) || !std::isfinite(spec.spread_modulus))
+    return "spread_modulus must be >= 0 Pa (got " + fmt(spec.spread_modulus) + ")";
+  if (spec.spread_modulus > 0 && !(spec.bulk_modulus > 0))
+    return "spread_modulus needs bulk_modulus > 0";
+  if (spec.bulk_modulus > 0 && spec.options.active_region)
+    return "bulk_modulus and the active region do not go together: the region's lists hold "
+           "springs only";
 
   // Element volumes, lumped masses and raw springs with volume shares.
   std::vector<double> mass(nn, 0.0);
@@ -294,6 +304,32 @@ std::string build_model(const BodySpec& spec, Model* out) {
   m.fixed.assign(nn, 0);
   m.tetrahedra = mesh.tetrahedra;
   m.hexahedra = mesh.hexahedra;
+  m.bulk_modulus = spec.bulk_modulus;
+  if (m.bulk_modulus > 0) {
+    // An element of no volume has no J; a hundred-millionth of the mean is taken for none.
+    std::array<Vec3, 8> x, g;
+    double total = 0;
+    for (const auto& t : m.tetrahedra) {
+      for (int a = 0; a < 4; ++a) x[a] = mesh.nodes[t[a]];
+      m.tet_rest_volume.push_back(tet_volume_gradient(x.data(), g.data()));
+      total += std::abs(m.tet_rest_volume.back());
+    }
+    m.spread_modulus = spec.spread_modulus;
+    for (const auto& h : m.hexahedra) {
+      for (int a = 0; a < 8; ++a) x[a] = mesh.nodes[h[a]];
+      double vq[8];
+      m.hex_rest_volume.push_back(hex_volume_gradient(x.data(), g.data(), vq));
+      total += std::abs(m.hex_rest_volume.back());
+      if (m.spread_modulus > 0) m.hex_rest_gauss.insert(m.hex_rest_gauss.end(), vq, vq + 8);
+    }
+    const double tiny = 1e-8 * total / (m.tetrahedra.size() + m.hexahedra.size());
+    for (size_t e = 0; e < m.tet_rest_volume.size(); ++e)
+      if (!(std::abs(m.tet_rest_volume[e]) > tiny))
+        return "bulk_modulus: tetrahedron " + std::to_string(e) + " has no volume";
+    for (size_t e = 0; e < m.hex_rest_volume.size(); ++e)
+      if (!(std::abs(m.hex_rest_volume[e]) > tiny))
+        return "bulk_modulus: hexahedron " + std::to_string(e) + " has no volume";
+  }
   m.options = spec.options;
   m.mapping = spec.mapping;
   m.probes = spec.probes;

@@ -45,6 +45,8 @@ struct BodySpec {
   std::vector<SpringGroupSpec> groups;
   std::vector<FixedSelector> fixed;
   Mapping mapping = Mapping::kStrain;
+  double bulk_modulus = 0;       // Pa, volume stiffness of every element (core/volume.h); 0: none
+  double spread_modulus = 0;     // Pa, hexahedra's Gauss-point spread stiffness (model.h); 0: none
   SolverOptions options;
   std::vector<ProbeSpec> probes;
   std::vector<PlaneSpec> planes;

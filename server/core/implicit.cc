@@ -1,7 +1,8 @@
 // Backward Euler. Newton on  M (x1 - x0 - h v0) = h^2 f(x1, (x1 - x0) / h); each iteration solves
 //   A dx = h^2 f - M (x1 - x0 - h v0),   A = M (1 + h mu) + sum_s [alpha d d^T + beta (I - d d^T)]
 //                                            + contact,
-// alpha = h^2 k_ax + h a b^2 c, beta = h^2 max(0, T / l) (step.h), restricted to free axes, by a
+// alpha = h^2 k_ax + h a b^2 c, beta = h^2 max(0, T / l) (step.h), plus h^2 kappa / |V0| g g^T per
+// element with volume stiffness (volume.h), restricted to free axes, by a
 // matrix-free conjugate gradient with a block-Jacobi (3 x 3 per node) preconditioner and fixed
 // budgets, then takes the longest step (1, 1/2, ...) that makes no spring shorter than its
 // hard-stop length.
@@ -186,6 +187,23 @@ double dot(int n, const double* __restrict a, const double* __restrict b) {
   return m;
 }
 
+// Calls f(nodes, n, g, c) for every element of the volume stiffness: its n node indices, its
+// dV/dx (n entries) and c = h^2 kappa / |V0| (its system block is c g g^T).
+template <typename F>
+void for_each_volume(const Model& m, const Workspace& ws, F&& f) {
+  if (!(m.bulk_modulus > 0)) return;
+  const double h = substep_of(m);
+  const Vec3* g = ws.volume_grad.data();
+  const double* coef = ws.volume_coef.data();
+  for (const auto& t : m.tetrahedra) f(t.data(), 4, g, h * h * *coef++), g += 4;
+  for (const auto& x : m.hexahedra) f(x.data(), 8, g, h * h * *coef++), g += 8;
+  if (!(m.spread_modulus > 0)) return;
+  // Gauss-point spread: eight blocks per hexahedron, c G_q G_q^T.
+  for (size_t e = 0; e < m.hexahedra.size(); ++e)
+    for (int q = 0; q < 8; ++q)
+      f(m.hexahedra[e].data(), 8, ws.spread_grad.data() + 64 * e + 8 * q, h * h * ws.spread_coef[e]);
+}
+
 // y = A p on free axes (component-major).
 void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
   const int nn = m.num_nodes();
@@ -241,6 +259,20 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
       }
     }
   }
+  for_each_volume(m, ws, [&](const int* nodes, int n, const Vec3* g, double c) {
+    double gp = 0;
+    for (int a = 0; a < n; ++a) {
+      const int i = nodes[a];
+      gp += g[a].x() * p[i] + g[a].y() * p[nn + i] + g[a].z() * p[2 * nn + i];
+    }
+    gp *= c;
+    for (int a = 0; a < n; ++a) {
+      const int i = nodes[a];
+      y[i] += gp * g[a].x();
+      y[nn + i] += gp * g[a].y();
+      y[2 * nn + i] += gp * g[a].z();
+    }
+  });
   const double* __restrict f = ws.sys_free.data();
   for (int k = 0; k < 3 * nn; ++k) y[k] *= f[k];
 }
@@ -289,6 +321,18 @@ void build_preconditioner(const Model& m, Workspace& ws) {
       }
     }
   }
+  for_each_volume(m, ws, [&](const int* nodes, int n, const Vec3* g, double c) {
+    for (int a = 0; a < n; ++a) {
+      const int i = nodes[a];
+      const Vec3& u = g[a];
+      d[i] += c * u.x() * u.x();
+      d[nn + i] += c * u.y() * u.y();
+      d[2 * nn + i] += c * u.z() * u.z();
+      d[3 * nn + i] += c * u.x() * u.y();
+      d[4 * nn + i] += c * u.x() * u.z();
+      d[5 * nn + i] += c * u.y() * u.z();
+    }
+  });
   invert_blocks(nn, d, ws.sys_free.data(), ws.sys_pre.data());
 }
 

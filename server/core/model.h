@@ -123,6 +123,18 @@ struct Model {
   std::vector<Vec3> normal;                 // (num_nodes) outward unit normal at rest on the
                                             // surface, zero inside
 
+  // Volume stiffness (core/volume.h): with bulk_modulus > 0 every tetrahedron and hexahedron
+  // stores (kappa / (2 |V0|)) (V - V0)^2.
+  double bulk_modulus = 0;                  // Pa, kappa; 0: pair springs only
+  std::vector<double> tet_rest_volume;      // (tetrahedra) signed V0, m^3, when kappa > 0
+  std::vector<double> hex_rest_volume;      // (hexahedra) signed trilinear V0, m^3, when kappa > 0
+  // Gauss-point spread: a hexahedron's volume constraint leaves the modes that move volume
+  // between its Gauss points free (hourglass modes: layers that alternately bulge and narrow).
+  // With spread_modulus > 0 each hexahedron also stores (kappa_s / (2 |V0| / 8)) sum_q d_q^2,
+  // d_q = (v_q - v0_q) - (V - V0) / 8, its Gauss-point shares' departure from a uniform change.
+  double spread_modulus = 0;                // Pa, kappa_s
+  std::vector<double> hex_rest_gauss;       // (8 hexahedra) v0_q, m^3, when kappa_s > 0
+
   std::vector<ProbeSpec> probes;
   std::vector<PlaneSpec> planes;
   SolverOptions options;

@@ -1,10 +1,12 @@
 #include "core/step_detail.h"
 
 #include "core/body.h"
+#include "core/volume.h"
 
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cstdint>
 #include <cmath>
@@ -332,6 +334,55 @@ void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep) {
               m.options.gravity.data(), m.options.mass_damping, ws.force.front().data());
 }
 
+// Pressure forces of the elements' volume stiffness (core/volume.h), added to ws.force; every
+// element's dV/dx is kept for the implicit system.
+void volume_forces(const Model& m, const State& s, Workspace& ws) {
+  if (!(m.bulk_modulus > 0)) return;
+  const double kappa = m.bulk_modulus;
+  std::array<Vec3, 8> x;
+  auto element = [&](const int* nodes, int n, double v0, Vec3* g, double* coef) {
+    for (int a = 0; a < n; ++a) x[a] = s.x[nodes[a]];
+    const double v = n == 4 ? tet_volume_gradient(x.data(), g) : hex_volume_gradient(x.data(), g);
+    *coef = kappa / std::abs(v0);
+    const double p = -*coef * (v - v0);
+    for (int a = 0; a < n; ++a) ws.force[nodes[a]] += p * g[a];
+  };
+  Vec3* g = ws.volume_grad.data();
+  double* coef = ws.volume_coef.data();
+  const int nt = static_cast<int>(m.tetrahedra.size());
+  for (int e = 0; e < nt; ++e, g += 4, ++coef)
+    element(m.tetrahedra[e].data(), 4, m.tet_rest_volume[e], g, coef);
+  const int nh = static_cast<int>(m.hexahedra.size());
+  if (!(m.spread_modulus > 0)) {
+    for (int e = 0; e < nh; ++e, g += 8, ++coef)
+      element(m.hexahedra[e].data(), 8, m.hex_rest_volume[e], g, coef);
+    return;
+  }
+  double vq[8];
+  for (int e = 0; e < nh; ++e, g += 8, ++coef) {
+    const int* nodes = m.hexahedra[e].data();
+    Vec3* gq = ws.spread_grad.data() + 64 * e;
+    for (int a = 0; a < 8; ++a) x[a] = s.x[nodes[a]];
+    const double v0 = m.hex_rest_volume[e];
+    const double v = hex_volume_gradient(x.data(), g, vq, gq);
+    *coef = kappa / std::abs(v0);
+    const double p = -*coef * (v - v0);
+    for (int a = 0; a < 8; ++a) ws.force[nodes[a]] += p * g[a];
+    // Spread: force -(8 kappa_s / |V0|) sum_q d_q G_q with G_q = g_q - g / 8.
+    const double cs = 8 * m.spread_modulus / std::abs(v0);
+    ws.spread_coef[e] = cs;
+    const double* v0q = m.hex_rest_gauss.data() + 8 * e;
+    const double mean = (v - v0) / 8;
+    for (int q = 0; q < 8; ++q) {
+      const double dq = -cs * ((vq[q] - v0q[q]) - mean);
+      for (int a = 0; a < 8; ++a) {
+        gq[8 * q + a] -= g[a] / 8;
+        ws.force[nodes[a]] += dq * gq[8 * q + a];
+      }
+    }
+  }
+}
+
 void hard_stop_project(const Model& m, State& s, Workspace& ws);
 
 // Contact of probes and planes with every node, or with the listed ones only (`nodes`; the
@@ -462,6 +513,7 @@ void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
   if (ws.runs.empty())  // the runs path writes the node terms with the spring forces
     for (int i = 0; i < nn; ++i) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
   spring_forces(m, s, ws, with_jacobian);
+  volume_forces(m, s, ws);
   contact_forces(m, s, ws, with_jacobian);
 }
 
@@ -644,6 +696,14 @@ Workspace::Workspace(const Model& m) {
   for (auto* v : {&sys_rhs, &sys_r, &sys_z, &sys_p, &sys_ap, &sys_dx}) v->assign(3 * nn, 0.0);
   sys_chunk.assign(6 * kChunkSprings, 0.0);
   good_maxwell.assign(ns, 0);
+  if (m.bulk_modulus > 0) {
+    volume_grad.assign(4 * m.tetrahedra.size() + 8 * m.hexahedra.size(), Vec3::Zero());
+    volume_coef.assign(m.tetrahedra.size() + m.hexahedra.size(), 0.0);
+    if (m.spread_modulus > 0) {
+      spread_grad.assign(64 * m.hexahedra.size(), Vec3::Zero());
+      spread_coef.assign(m.hexahedra.size(), 0.0);
+    }
+  }
   // Active region: everything awake until the first tick chooses.
   awake.assign(nn, 1);
   wake.assign(nn, 0);
@@ -866,6 +926,29 @@ double potential_energy(const Model& m, const State& s) {
       const double law_e = g.law ? g.law->energy(d) : 0.5 * g.card.hooke_k * d * d;
       const double dm = d - s.maxwell[k];
       e += (a / b) * (law_e + 0.5 * g.card.maxwell_k * dm * dm);
+    }
+  }
+  if (m.bulk_modulus > 0) {
+    std::array<Vec3, 8> x, g;
+    auto element = [&](const int* nodes, int n, double v0) {
+      for (int a = 0; a < n; ++a) x[a] = s.x[nodes[a]];
+      const double v =
+          n == 4 ? tet_volume_gradient(x.data(), g.data()) : hex_volume_gradient(x.data(), g.data());
+      e += 0.5 * m.bulk_modulus / std::abs(v0) * (v - v0) * (v - v0);
+    };
+    for (size_t t = 0; t < m.tetrahedra.size(); ++t)
+      element(m.tetrahedra[t].data(), 4, m.tet_rest_volume[t]);
+    for (size_t h = 0; h < m.hexahedra.size(); ++h)
+      element(m.hexahedra[h].data(), 8, m.hex_rest_volume[h]);
+    for (size_t h = 0; h < m.hexahedra.size() && m.spread_modulus > 0; ++h) {
+      for (int a = 0; a < 8; ++a) x[a] = s.x[m.hexahedra[h][a]];
+      double vq[8];
+      const double v0 = m.hex_rest_volume[h];
+      const double mean = (hex_volume_gradient(x.data(), g.data(), vq) - v0) / 8;
+      for (int q = 0; q < 8; ++q) {
+        const double d = vq[q] - m.hex_rest_gauss[8 * h + q] - mean;
+        e += 0.5 * 8 * m.spread_modulus / std::abs(v0) * d * d;
+      }
     }
   }
   for (size_t q = 0; q < m.probes.size(); ++q) {

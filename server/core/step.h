@@ -163,6 +163,15 @@ struct Workspace {
   std::vector<int> chunk_active_count;            // (chunks) springs with an awake end
   std::vector<double> tangent_limit;              // (groups) card units: far springs beyond wake
   bool has_maxwell = false;                       // a group has a Maxwell branch
+  // Volume stiffness (model.bulk_modulus > 0): dV/dx of every element node at the last force
+  // evaluation, tetrahedra first (4 each), then hexahedra (8 each), and kappa / |V0| per element
+  // in the same order (the implicit system adds h^2 kappa / |V0| g g^T per element).
+  std::vector<Vec3> volume_grad;
+  std::vector<double> volume_coef;
+  // Gauss-point spread (model.spread_modulus > 0): per hexahedron, d(d_q)/dx_a for q, a < 8
+  // (64 entries, q-major), and 8 kappa_s / |V0| (the system adds h^2 times that sum_q G_q G_q^T).
+  std::vector<Vec3> spread_grad;
+  std::vector<double> spread_coef;
   // Last good state for rollback.
   std::vector<Vec3> good_x, good_v;
   std::vector<double> good_maxwell;
@@ -179,11 +188,12 @@ struct Workspace {
 // Allocates: for building a Workspace only.
 double far_spectral_bound(const Model& model);
 
-// Forces on every node at (state.x, state.v): springs, dampers, Maxwell branches, gravity, mass
-// damping, contact. Fills ws.force and the probe/plane reactions in state.
+// Forces on every node at (state.x, state.v): springs, dampers, Maxwell branches, element
+// volumes, gravity, mass damping, contact. Fills ws.force and the probe/plane reactions in state.
 void compute_forces(const Model& model, State& state, Workspace& ws);
 
-// Stored energy (J): springs (law energy scaled by a / b), Maxwell branches, contact penalties.
+// Stored energy (J): springs (law energy scaled by a / b), Maxwell branches, element volumes,
+// contact penalties.
 double potential_energy(const Model& model, const State& state);
 double kinetic_energy(const Model& model, const State& state);
 

@@ -153,6 +153,16 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   if (!(b.density > 0) || !std::isfinite(b.density))
     return Error{loc.at("density") + "density must be > 0 kg/m^3 (got " + num(b.density) + ")"};
   b.mapping = scene.mapping() == v1::RAW ? Mapping::kRaw : Mapping::kStrain;
+  b.bulk_modulus = scene.bulk_modulus();
+  if (!(b.bulk_modulus >= 0) || !std::isfinite(b.bulk_modulus))
+    return Error{loc.at("bulk_modulus") + "bulk_modulus must be >= 0 Pa (got " +
+                 num(b.bulk_modulus) + ")"};
+  b.spread_modulus = scene.spread_modulus();
+  if (!(b.spread_modulus >= 0) || !std::isfinite(b.spread_modulus))
+    return Error{loc.at("spread_modulus") + "spread_modulus must be >= 0 Pa (got " +
+                 num(b.spread_modulus) + ")"};
+  if (b.spread_modulus > 0 && !(b.bulk_modulus > 0))
+    return Error{loc.at("spread_modulus") + "spread_modulus needs bulk_modulus > 0"};
 
   if (scene.group_size() == 0) return Error{name + ": a scene needs at least one group { ... }"};
   for (int g = 0; g < scene.group_size(); ++g) {
@@ -266,6 +276,8 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     if (o.integrator == Integrator::kImplicitEuler)
       return Error{awhere + "needs SYMPLECTIC_EULER or EXPLICIT_EULER (the implicit step couples "
                             "every node)"};
+    if (b.bulk_modulus > 0)
+      return Error{awhere + "not with bulk_modulus (the region's lists hold springs only)"};
     if (!(a.tolerance() > 0) || !std::isfinite(a.tolerance()))
       return Error{awhere + "tolerance must be a positive length in m (got " + num(a.tolerance()) +
                    ")"};

@@ -134,9 +134,10 @@ struct BodyGeometry {
 };
 
 std::vector<double> surrogate_impl(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
-                                   const BodyGeometry& geo, const std::vector<double>& grid) {
+                                   const BodyGeometry& geo, const std::vector<double>& grid,
+                                   double bulk_modulus) {
   Model cell;
-  if (!make_uniaxial_cell(groups, mapping, 0.01, &cell).empty())
+  if (!make_uniaxial_cell(groups, mapping, 0.01, &cell, bulk_modulus).empty())
     return std::vector<double>(grid.size(), std::numeric_limits<double>::quiet_NaN());
   std::vector<double> strains(grid.size());
   for (size_t k = 0; k < grid.size(); ++k) strains[k] = grid[k] / geo.height;
@@ -502,6 +503,17 @@ LatticeModuli lattice_moduli(const std::vector<SpringGroupSpec>& groups) {
   return m;
 }
 
+double body_poisson(const LatticeModuli& m, double kappa) {
+  const double K = (m.c11 + 2 * m.c12) / 3 + kappa, G = (m.c11 - m.c12 + 3 * m.c44) / 5;
+  return (3 * K - 2 * G) / (2 * (3 * K + G));
+}
+
+double bulk_for_poisson(const LatticeModuli& m, double nu) {
+  const double G = (m.c11 - m.c12 + 3 * m.c44) / 5;
+  const double K = 2 * G * (1 + nu) / (3 * (1 - 2 * nu));
+  return std::max(0.0, K - (m.c11 + 2 * m.c12) / 3);
+}
+
 std::vector<SpringGroupSpec> split_groups(const BodySpec& spec,
                                           const std::vector<ConicalCard>& cards,
                                           std::string* error) {
@@ -534,7 +546,8 @@ std::vector<double> surrogate_force(const BodySpec& spec, const std::vector<Spri
   Model m;
   if (!build_model(spec, &m).empty() || m.planes.empty())
     return std::vector<double>(grid.size(), std::numeric_limits<double>::quiet_NaN());
-  return surrogate_impl(groups, spec.mapping, {plate_height(m), cross_section(m)}, grid);
+  return surrogate_impl(groups, spec.mapping, {plate_height(m), cross_section(m)}, grid,
+                        spec.bulk_modulus);
 }
 
 std::vector<double> surrogate_force(const BodySpec& spec, const ConicalCard& card,
@@ -623,9 +636,26 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   auto groups_for = [&](const std::vector<ConicalCard>& cards) {
     return split_groups(spec, cards);
   };
+  // Volume stiffness: the scene's Poisson ratio (or the asked one) kept as the cards change, so
+  // that kappa scales with the spring moduli and forces stay proportional to a common factor.
+  const bool with_volume = o.poisson >= 0 || spec.bulk_modulus > 0;
+  const double nu = o.poisson >= 0 ? o.poisson
+                                   : body_poisson(lattice_moduli(spec.groups), spec.bulk_modulus);
+  if (with_volume && !(nu < 0.5)) {
+    r.error = "Poisson ratio must be < 0.5 (got " + fmt(nu) + ")";
+    return r;
+  }
+  auto bulk_for = [&](const std::vector<SpringGroupSpec>& groups) {
+    return with_volume ? bulk_for_poisson(lattice_moduli(groups), nu) : 0.0;
+  };
+  const double spread_ratio = spec.bulk_modulus > 0 ? spec.spread_modulus / spec.bulk_modulus : 0.0;
+  if (with_volume)
+    say("volume stiffness: Poisson ratio " + fmt(nu, 4) + " kept while fitting (bulk modulus at "
+        "the scene's card " + fmt(bulk_for(spec.groups), 5) + " Pa)");
   auto surrogate = [&](const std::vector<ConicalCard>& cards) {
     ++r.evaluations;
-    return surrogate_impl(groups_for(cards), spec.mapping, geo, r.grid);
+    const std::vector<SpringGroupSpec> groups = groups_for(cards);
+    return surrogate_impl(groups, spec.mapping, geo, r.grid, bulk_for(groups));
   };
   // Best common scale of the moduli: at fixed tapers and strokes, forces are proportional to a
   // common factor on every E_c.
@@ -789,6 +819,9 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     r.card = r.cards[0];
     r.groups = groups_for(r.cards);
     r.moduli = lattice_moduli(r.groups);
+    r.bulk_modulus = bulk_for(r.groups);
+    r.spread_modulus = spread_ratio * r.bulk_modulus;
+    r.poisson = body_poisson(r.moduli, r.bulk_modulus);
     r.surrogate = surrogate(r.cards);
     r.surrogate_error = average_relative_error(r.surrogate, r.data, r.first);
   };
@@ -802,6 +835,8 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   auto full = [&](const std::vector<ConicalCard>& cards) {
     BodySpec s = spec;
     s.groups = groups_for(cards);
+    s.bulk_modulus = bulk_for(s.groups);
+    s.spread_modulus = spread_ratio * s.bulk_modulus;
     Model m;
     if (s.groups.empty() || !build_model(s, &m).empty()) return std::vector<double>(n, std::nan(""));
     ++r.full_evaluations;

@@ -97,6 +97,14 @@ struct LatticeModuli {
 };
 LatticeModuli lattice_moduli(const std::vector<SpringGroupSpec>& groups);
 
+// Small-strain Poisson ratio of a body of lattice `m` with volume stiffness kappa (Pa, added to
+// its bulk modulus; core/volume.h), from the isotropic averages K = (C11 + 2 C12) / 3 + kappa and
+// G = (C11 - C12 + 3 C44) / 5 (Voigt): nu = (3 K - 2 G) / (2 (3 K + G)).
+double body_poisson(const LatticeModuli& m, double kappa);
+// The kappa (Pa, >= 0) that gives lattice `m` the Poisson ratio nu (< 1/2): 0 when the springs
+// alone already reach it.
+double bulk_for_poisson(const LatticeModuli& m, double nu);
+
 // The column floor: the smallest average relative error (over grid points first..) that any
 // sum of conical laws in parallel can reach on a force curve, every law acting as a column along
 // the load (spring strain = body strain, no lateral coupling) and none past its stroke in the
@@ -148,6 +156,10 @@ struct FitOptions {
   bool fit_precompression = true;  // fit each card's pre-compression p = delta0 / S too (a
                                    // fourth number per card); false: p = 0, the plain law
   double rate = 500e-3 / 60; // m/s, plate speed of the full-body compression
+  double poisson = -1;       // the body's small-strain Poisson ratio kept while the cards change,
+                             // by the volume stiffness (bulk_for_poisson); < 0: the scene's own
+                             // (its cards and bulk_modulus), and with no bulk_modulus in the scene
+                             // none is added
   ShapeBounds bounds;
   std::function<void(const std::string&)> progress;  // one line per stage / iteration
 };
@@ -160,6 +172,10 @@ struct FitResult {
   std::vector<SpringGroupSpec> groups;  // the fitted groups: the scene's conical group split by
                                         // family, each with its fitted card, in scene order
   LatticeModuli moduli;           // of the fitted groups
+  double bulk_modulus = 0;        // Pa, volume stiffness of the fitted body
+  double spread_modulus = 0;      // Pa, its Gauss-point spread stiffness (the scene's ratio to
+                                  // bulk_modulus kept)
+  double poisson = 0;             // its small-strain Poisson ratio (body_poisson)
   std::vector<double> grid;       // (points) plate travel, m
   std::vector<double> data;       // (points) mean measured force, N
   std::vector<double> surrogate;  // (points) cell model force, N

@@ -115,7 +115,7 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
 }
 
 std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
-                               double side, Model* cell) {
+                               double side, Model* cell, double bulk_modulus) {
   BodySpec spec;
   spec.mesh = make_box_lattice(Vec3(side, side, side), {1, 1, 1});
   spec.density = 1000;
@@ -127,6 +127,7 @@ std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mappi
     g.card.maxwell_tau = 0;
   }
   spec.mapping = mapping;
+  spec.bulk_modulus = bulk_modulus;
   SolverOptions& o = spec.options;
   o.integrator = Integrator::kImplicitEuler;
   o.dt = 1.0;  // long step: each implicit step is a Newton step on the static equilibrium

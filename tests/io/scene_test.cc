@@ -69,6 +69,12 @@ TEST(SceneTest, WrongScenesAreRefusedWithLineAndReason) {
   // Negative density at its line.
   const std::string neg = with("density: 1000", "density: -3");
   EXPECT_NE(neg.find("s.pbtxt:4:1: density must be > 0"), std::string::npos) << neg;
+  // A negative or non-finite bulk modulus at its line.
+  for (const char* k : {"-1", "nan", "inf"}) {
+    const std::string bulk = with("density: 1000", std::string("density: 1000 bulk_modulus: ") + k);
+    EXPECT_NE(bulk.find("s.pbtxt:4:"), std::string::npos) << bulk;
+    EXPECT_NE(bulk.find("bulk_modulus must be >= 0 Pa"), std::string::npos) << bulk;
+  }
   // Invalid card at its group's line, naming the parameter.
   const std::string card = with("d: 1e-3", "d: 0");
   EXPECT_NE(card.find("s.pbtxt:5:1: group 0 (\"g\"): d must be > 0"), std::string::npos) << card;
@@ -157,6 +163,12 @@ TEST(SceneTest, ActiveRegionIsReadAndCheckedInTheSolver) {
     EXPECT_NE(e.find("s.pbtxt:7:1: solver.active_region: "), std::string::npos) << solver << ": " << e;
     EXPECT_NE(e.find(why), std::string::npos) << solver << ": " << e;
   }
+  // The region's lists hold springs only: no volume stiffness with it.
+  std::string vol = with("active_region { tolerance: 1e-4 }");
+  vol.replace(vol.find("density: 1000"), 13, "density: 1000 bulk_modulus: 1e5");
+  const std::string e = ErrorOf(vol);
+  EXPECT_NE(e.find("s.pbtxt:7:1: solver.active_region: not with bulk_modulus"), std::string::npos)
+      << e;
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
   struct Opts {
     std::vector<std::string> data;
     std::string scene, out, curves, plot;
-    double max_strain = 0.5, skip_strain = 0.03, rate_mm_per_min = 500;
+    double max_strain = 0.5, skip_strain = 0.03, rate_mm_per_min = 500, poisson = -1;
     int points = 50, full_iterations = 3, cards = 1, verify = 3, space_mapping = 0;
     bool tie_taper = false, free_moduli = false, no_precompression = false;
   };
@@ -57,6 +57,10 @@ void register_calibrate(CLI::App& app, Runner* run) {
                   "output space mapping steps after the full-body check (one full compression "
                   "each; 0: none)")
       ->capture_default_str();
+  cmd->add_option("--poisson", o->poisson,
+                  "small-strain Poisson ratio of the body, kept by a volume stiffness (bulk_modulus) "
+                  "that scales with the cards (default: the scene's own; a scene without "
+                  "bulk_modulus gets none)");
   cmd->add_option("--rate-mm-per-min", o->rate_mm_per_min, "plate speed of the full-body runs")
       ->capture_default_str();
   cmd->add_option("--out", o->out, "write the fitted card here (scene fragment)")->required();
@@ -100,6 +104,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
       fo.verify_candidates = o->verify;
       fo.space_mapping = o->space_mapping;
       fo.rate = o->rate_mm_per_min * 1e-3 / 60;
+      fo.poisson = o->poisson;
       fo.progress = [](const std::string& s) {
         std::printf("%s\n", s.c_str());
         std::fflush(stdout);
@@ -128,10 +133,12 @@ void register_calibrate(CLI::App& app, Runner* run) {
       }
       std::snprintf(line, sizeof line,
                     "# Lattice: C11 %.6g Pa, C12 = C44 %.6g Pa, E %.6g Pa, Poisson %.4g, Zener "
-                    "ratio 2 C44 / (C11 - C12) = %.4g (1: isotropic).\n"
+                    "ratio 2 C44 / (C11 - C12) = %.4g (1: isotropic); volume stiffness %.6g Pa, "
+                    "body Poisson %.4g.\n"
                     "# Average relative error (strain >= %g): surrogate %.3f %%, full body %s.\n",
                     r.moduli.c11, r.moduli.c12, r.moduli.young, r.moduli.poisson,
-                    r.moduli.anisotropy, o->skip_strain, 100 * r.surrogate_error, full);
+                    r.moduli.anisotropy, r.bulk_modulus, r.poisson, o->skip_strain,
+                    100 * r.surrogate_error, full);
       head += line;
       if (r.floor.error >= 0) {
         std::snprintf(line, sizeof line,
@@ -142,14 +149,24 @@ void register_calibrate(CLI::App& app, Runner* run) {
       }
       std::ofstream out(o->out);
       out << head;
+      if (r.bulk_modulus > 0) {
+        std::snprintf(line, sizeof line, "bulk_modulus: %.9g\n", r.bulk_modulus);
+        out << line;
+        if (r.spread_modulus > 0) {
+          std::snprintf(line, sizeof line, "spread_modulus: %.9g\n", r.spread_modulus);
+          out << line;
+        }
+      }
       for (const auto& g : r.groups)
         if (g.card.law == LawKind::kConical) out << group_fragment(g);
       if (!out) {
         std::fprintf(stderr, "conica-lab calibrate: cannot write %s\n", o->out.c_str());
         return 1;
       }
-      std::printf("fitted group(s) written to %s; lattice Zener ratio %.4g, Poisson %.4g\n",
-                  o->out.c_str(), r.moduli.anisotropy, r.moduli.poisson);
+      std::printf("fitted group(s) written to %s; lattice Zener ratio %.4g, Poisson %.4g; body "
+                  "Poisson %.4g with bulk_modulus %.6g Pa\n",
+                  o->out.c_str(), r.moduli.anisotropy, r.moduli.poisson, r.poisson,
+                  r.bulk_modulus);
       if (!o->curves.empty()) {
         std::ofstream cv(o->curves);
         cv << "displacement_mm,data_N,surrogate_N,full_N\n";
