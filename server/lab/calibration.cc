@@ -863,6 +863,46 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
       best_curve = f;
     }
   }
+  // Full-body grid (one card): forces scale with the modulus at fixed shape (the volume stiffness
+  // and the plate's penalty scale with it), so each shape takes the best modulus in closed form;
+  // the best is compressed again at that modulus.
+  if (K == 1 && o.full_grid > 0) {
+    const int g = o.full_grid;
+    double best_estimate = best_full;
+    std::vector<CardShape> grid_best;
+    for (int it = 0; it < g; ++it)
+      for (int is = 0; is < g; ++is) {
+        CardShape sh = best_shapes[0];
+        sh.taper = B.taper_min + (B.taper_max - B.taper_min) * (it + 0.5) / g;
+        sh.stroke = smin[0] + (B.stroke_max - smin[0]) * (is + 0.5) / g;
+        sh.precompression = 0;
+        std::vector<CardShape> one_shape{sh};
+        if (!std::isfinite(scaled_error(&one_shape))) continue;  // modulus from the surrogate
+        std::vector<double> f = full(cards_of(base, one_shape));
+        const double scale = best_scale(f);
+        if (!(scale > 0)) continue;
+        for (double& v : f) v *= scale;
+        const double e = average_relative_error(f, r.data, r.first);
+        one_shape[0].modulus *= scale;
+        say("full-body grid: taper " + fmt(sh.taper, 3) + ", stroke " + fmt(sh.stroke, 3) +
+            ": average relative error " + fmt(100 * e, 4) + " % (modulus scaled)");
+        if (e < best_estimate) {
+          best_estimate = e;
+          grid_best = one_shape;
+        }
+      }
+    if (!grid_best.empty()) {
+      const std::vector<double> f = full(cards_of(base, grid_best));
+      const double e = average_relative_error(f, r.data, r.first);
+      say("full-body grid best: " + shapes_text(grid_best) + ", average relative error " +
+          fmt(100 * e, 4) + " %");
+      if (e < best_full) {
+        best_full = e;
+        best_shapes = grid_best;
+        best_curve = f;
+      }
+    }
+  }
   set_result(best_shapes);
   r.surrogate_error_before_refine = r.surrogate_error;
   r.full_error_before_refine = best_full;
