@@ -219,6 +219,11 @@ std::string build_model(const BodySpec& spec, Model* out) {
     return "spread_modulus must be >= 0 Pa (got " + fmt(spec.spread_modulus) + ")";
   if (spec.spread_modulus > 0 && !(spec.bulk_modulus > 0))
     return "spread_modulus needs bulk_modulus > 0";
+  if (!(spec.shear_modulus >= 0) || !std::isfinite(spec.shear_modulus))
+    return "shear_modulus must be >= 0 Pa (got " + fmt(spec.shear_modulus) + ")";
+  if (spec.shear_modulus > 0 && spec.options.active_region)
+    return "shear_modulus and the active region do not go together: the region's lists hold "
+           "springs only";
   if (spec.bulk_modulus > 0 && spec.options.active_region)
     return "bulk_modulus and the active region do not go together: the region's lists hold "
            "springs only";
@@ -304,6 +309,27 @@ std::string build_model(const BodySpec& spec, Model* out) {
   m.fixed.assign(nn, 0);
   m.tetrahedra = mesh.tetrahedra;
   m.hexahedra = mesh.hexahedra;
+  m.shear_modulus = spec.shear_modulus;
+  if (m.shear_modulus > 0) {
+    std::array<Vec3, 8> x;
+    std::array<Vec3, 64> b;
+    double v0[8];
+    for (size_t e = 0; e < m.tetrahedra.size(); ++e) {
+      for (int a = 0; a < 4; ++a) x[a] = mesh.nodes[m.tetrahedra[e][a]];
+      const double v = tet_shape_gradients(x.data(), b.data());
+      if (!(std::abs(v) > 0) || !b[0].allFinite())
+        return "shear_modulus: tetrahedron " + std::to_string(e) + " has no volume";
+      m.shear_b.insert(m.shear_b.end(), b.begin(), b.begin() + 4);
+      m.shear_v0.push_back(std::abs(v));
+    }
+    for (size_t e = 0; e < m.hexahedra.size(); ++e) {
+      for (int a = 0; a < 8; ++a) x[a] = mesh.nodes[m.hexahedra[e][a]];
+      if (!hex_shape_gradients(x.data(), b.data(), v0))
+        return "shear_modulus: hexahedron " + std::to_string(e) + " is degenerate";
+      m.shear_b.insert(m.shear_b.end(), b.begin(), b.end());
+      for (double v : v0) m.shear_v0.push_back(std::abs(v));
+    }
+  }
   m.bulk_modulus = spec.bulk_modulus;
   if (m.bulk_modulus > 0) {
     // An element of no volume has no J; a hundred-millionth of the mean is taken for none.

@@ -47,6 +47,7 @@ struct BodySpec {
   Mapping mapping = Mapping::kStrain;
   double bulk_modulus = 0;       // Pa, volume stiffness of every element (core/volume.h); 0: none
   double spread_modulus = 0;     // Pa, hexahedra's Gauss-point spread stiffness (model.h); 0: none
+  double shear_modulus = 0;      // Pa, isochoric neo-Hookean shear stiffness (volume.h); 0: none
   SolverOptions options;
   std::vector<ProbeSpec> probes;
   std::vector<PlaneSpec> planes;

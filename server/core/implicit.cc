@@ -204,6 +204,20 @@ void for_each_volume(const Model& m, const Workspace& ws, F&& f) {
       f(m.hexahedra[e].data(), 8, ws.spread_grad.data() + 64 * e + 8 * q, h * h * ws.spread_coef[e]);
 }
 
+// Calls f(nodes, n, b, c) for every tetrahedron and hexahedron Gauss point of the shear
+// stiffness: its node indices, shape-function gradients and c = h^2 |v0| mu J^(-2/3) (its system
+// block between nodes a and b is c (b_a . b_b) I).
+template <typename F>
+void for_each_shear(const Model& m, const Workspace& ws, F&& f) {
+  if (!(m.shear_modulus > 0)) return;
+  const double h2 = substep_of(m) * substep_of(m);
+  const Vec3* b = m.shear_b.data();
+  const double* c = ws.shear_coef.data();
+  for (const auto& t : m.tetrahedra) f(t.data(), 4, b, h2 * *c++), b += 4;
+  for (const auto& x : m.hexahedra)
+    for (int q = 0; q < 8; ++q) f(x.data(), 8, b, h2 * *c++), b += 8;
+}
+
 // y = A p on free axes (component-major).
 void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
   const int nn = m.num_nodes();
@@ -273,6 +287,21 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
       y[2 * nn + i] += gp * g[a].z();
     }
   });
+  for_each_shear(m, ws, [&](const int* nodes, int n, const Vec3* b, double c) {
+    Mat3 t = Mat3::Zero();  // sum_b p_b b_b^T
+    for (int a = 0; a < n; ++a) {
+      const int i = nodes[a];
+      t += Vec3(p[i], p[nn + i], p[2 * nn + i]) * b[a].transpose();
+    }
+    t *= c;
+    for (int a = 0; a < n; ++a) {
+      const int i = nodes[a];
+      const Vec3 u = t * b[a];
+      y[i] += u.x();
+      y[nn + i] += u.y();
+      y[2 * nn + i] += u.z();
+    }
+  });
   const double* __restrict f = ws.sys_free.data();
   for (int k = 0; k < 3 * nn; ++k) y[k] *= f[k];
 }
@@ -331,6 +360,12 @@ void build_preconditioner(const Model& m, Workspace& ws) {
       d[3 * nn + i] += c * u.x() * u.y();
       d[4 * nn + i] += c * u.x() * u.z();
       d[5 * nn + i] += c * u.y() * u.z();
+    }
+  });
+  for_each_shear(m, ws, [&](const int* nodes, int n, const Vec3* b, double c) {
+    for (int a = 0; a < n; ++a) {
+      const double k = c * b[a].squaredNorm();
+      for (int e = 0; e < 3; ++e) d[e * nn + nodes[a]] += k;
     }
   });
   invert_blocks(nn, d, ws.sys_free.data(), ws.sys_pre.data());

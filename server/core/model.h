@@ -134,6 +134,12 @@ struct Model {
   // d_q = (v_q - v0_q) - (V - V0) / 8, its Gauss-point shares' departure from a uniform change.
   double spread_modulus = 0;                // Pa, kappa_s
   std::vector<double> hex_rest_gauss;       // (8 hexahedra) v0_q, m^3, when kappa_s > 0
+  // Shear stiffness (core/volume.h): isochoric neo-Hookean per tetrahedron and per Gauss point
+  // of a hexahedron, with shape-function gradients at rest (tetrahedra 4 each, then hexahedra
+  // 64 each, point-major) and rest volume shares |v0| (1 per tetrahedron, 8 per hexahedron).
+  double shear_modulus = 0;                 // Pa, mu; 0: none
+  std::vector<Vec3> shear_b;                // 1/m
+  std::vector<double> shear_v0;             // m^3
 
   std::vector<ProbeSpec> probes;
   std::vector<PlaneSpec> planes;

@@ -383,6 +383,33 @@ void volume_forces(const Model& m, const State& s, Workspace& ws) {
   }
 }
 
+// Shear stiffness forces (core/volume.h), added to ws.force.
+void shear_forces(const Model& m, const State& s, Workspace& ws) {
+  if (!(m.shear_modulus > 0)) return;
+  const double mu = m.shear_modulus;
+  const Vec3* b = m.shear_b.data();
+  const double* v0 = m.shear_v0.data();
+  double* coef = ws.shear_coef.data();
+  auto point = [&](const int* nodes, int n, const Vec3* bq, double w) {
+    Mat3 F = Mat3::Zero();
+    for (int a = 0; a < n; ++a) F += s.x[nodes[a]] * bq[a].transpose();
+    Mat3 P;
+    double jm;
+    isochoric_neo_hookean(F.data(), mu, P.data(), &jm);
+    for (int a = 0; a < n; ++a) ws.force[nodes[a]] -= w * (P * bq[a]);
+    *coef++ = w * mu * jm;
+  };
+  for (const auto& t : m.tetrahedra) {
+    point(t.data(), 4, b, *v0++);
+    b += 4;
+  }
+  for (const auto& h : m.hexahedra)
+    for (int q = 0; q < 8; ++q) {
+      point(h.data(), 8, b, *v0++);
+      b += 8;
+    }
+}
+
 void hard_stop_project(const Model& m, State& s, Workspace& ws);
 
 // Contact of probes and planes with every node, or with the listed ones only (`nodes`; the
@@ -514,6 +541,7 @@ void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
     for (int i = 0; i < nn; ++i) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
   spring_forces(m, s, ws, with_jacobian);
   volume_forces(m, s, ws);
+  shear_forces(m, s, ws);
   contact_forces(m, s, ws, with_jacobian);
 }
 
@@ -696,6 +724,7 @@ Workspace::Workspace(const Model& m) {
   for (auto* v : {&sys_rhs, &sys_r, &sys_z, &sys_p, &sys_ap, &sys_dx}) v->assign(3 * nn, 0.0);
   sys_chunk.assign(6 * kChunkSprings, 0.0);
   good_maxwell.assign(ns, 0);
+  if (m.shear_modulus > 0) shear_coef.assign(m.shear_v0.size(), 0.0);
   if (m.bulk_modulus > 0) {
     volume_grad.assign(4 * m.tetrahedra.size() + 8 * m.hexahedra.size(), Vec3::Zero());
     volume_coef.assign(m.tetrahedra.size() + m.hexahedra.size(), 0.0);
@@ -950,6 +979,21 @@ double potential_energy(const Model& m, const State& s) {
         e += 0.5 * 8 * m.spread_modulus / std::abs(v0) * d * d;
       }
     }
+  }
+  if (m.shear_modulus > 0) {
+    const Vec3* b = m.shear_b.data();
+    const double* v0 = m.shear_v0.data();
+    auto point = [&](const int* nodes, int n) {
+      Mat3 F = Mat3::Zero();
+      for (int a = 0; a < n; ++a) F += s.x[nodes[a]] * b[a].transpose();
+      Mat3 P;
+      double jm;
+      e += *v0++ * isochoric_neo_hookean(F.data(), m.shear_modulus, P.data(), &jm);
+      b += n;
+    };
+    for (const auto& t : m.tetrahedra) point(t.data(), 4);
+    for (const auto& h : m.hexahedra)
+      for (int q = 0; q < 8; ++q) point(h.data(), 8);
   }
   for (size_t q = 0; q < m.probes.size(); ++q) {
     const ProbeState& p = s.probes[q];

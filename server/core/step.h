@@ -172,6 +172,9 @@ struct Workspace {
   // (64 entries, q-major), and 8 kappa_s / |V0| (the system adds h^2 times that sum_q G_q G_q^T).
   std::vector<Vec3> spread_grad;
   std::vector<double> spread_coef;
+  // Shear stiffness (model.shear_modulus > 0): |v0| mu J^(-2/3) per tetrahedron and Gauss point
+  // at the last force evaluation (the system adds h^2 times that (b_a . b_b) I).
+  std::vector<double> shear_coef;
   // Last good state for rollback.
   std::vector<Vec3> good_x, good_v;
   std::vector<double> good_maxwell;

@@ -1,5 +1,7 @@
 #include "core/volume.h"
 
+#include <Eigen/LU>
+
 #include <cmath>
 
 namespace conica {
@@ -64,6 +66,46 @@ double hex_volume_gradient(const Vec3* x, Vec3* g, double* vq, Vec3* gq) {
     }
   }
   return v;
+}
+
+double tet_shape_gradients(const Vec3* x, Vec3* b) {
+  Eigen::Matrix3d dm;
+  dm << x[1] - x[0], x[2] - x[0], x[3] - x[0];
+  const double det = dm.determinant();
+  const Eigen::Matrix3d inv = dm.inverse();  // rows: gradients of the barycentric coordinates
+  for (int a = 1; a < 4; ++a) b[a] = inv.row(a - 1).transpose();
+  b[0] = -(b[1] + b[2] + b[3]);
+  return det / 6.0;
+}
+
+bool hex_shape_gradients(const Vec3* x, Vec3* b, double* v0) {
+  const HexGradients& hg = hex_gradients();
+  for (int q = 0; q < 8; ++q) {
+    Eigen::Matrix3d j = Eigen::Matrix3d::Zero();
+    for (int a = 0; a < 8; ++a)
+      for (int k = 0; k < 3; ++k) j.col(k) += hg.d[q][a][k] * x[a];
+    v0[q] = j.determinant();
+    if (!(std::abs(v0[q]) > 0)) return false;
+    const Eigen::Matrix3d jinv_t = j.inverse().transpose();
+    for (int a = 0; a < 8; ++a)
+      b[8 * q + a] = jinv_t * Vec3(hg.d[q][a][0], hg.d[q][a][1], hg.d[q][a][2]);
+  }
+  return true;
+}
+
+double isochoric_neo_hookean(const double* f, double mu, double* p, double* jm) {
+  const Eigen::Map<const Eigen::Matrix3d> F(f);
+  Eigen::Map<Eigen::Matrix3d> P(p);
+  const double J = F.determinant();
+  if (!(J > 0)) {
+    P.setZero();
+    *jm = 1;
+    return 0;
+  }
+  const double m = std::pow(J, -2.0 / 3.0), i1 = F.squaredNorm();
+  *jm = m;
+  P = mu * m * (F - (i1 / 3) * F.inverse().transpose());
+  return 0.5 * mu * (m * i1 - 3);
 }
 
 }  // namespace conica

@@ -16,6 +16,14 @@
 //
 // The implicit solver takes the Gauss-Newton part of the element Hessian, (kappa / V0) g g^T with
 // g = dV/dx: positive semi-definite (the dropped kappa (J - 1) d2V/dx2 is indefinite).
+//
+// Shear stiffness (shear_modulus mu > 0): each element (a tetrahedron, or each Gauss point of a
+// hexahedron with its share v0 of the rest volume) stores the isochoric neo-Hookean energy
+//   W = v0 (mu / 2) (J^(-2/3) tr(F^T F) - 3),   F = sum_a x_a b_a^T,
+// b_a the gradient of node a's shape function at rest (rest coordinates), J = det F. It adds mu
+// to the body's shear modulus and nothing to its bulk modulus, and unlike pair springs it keeps
+// its shear stiffness under compression (d2W / dF13^2 = mu J^(-2/3) at a uniaxial state). The
+// implicit system takes its Laplacian part, h^2 v0 mu J^(-2/3) (b_a . b_b) I.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -31,5 +39,18 @@ double tet_volume_gradient(const Vec3* x, Vec3* g);
 // With vq and gq: also the share of each Gauss point q (det of the map's Jacobian there, weight
 // 1) in vq[q] and its gradient in gq[8 q + a]; the shares sum to the volume.
 double hex_volume_gradient(const Vec3* x, Vec3* g, double* vq = nullptr, Vec3* gq = nullptr);
+
+// Rest shape-function gradients of a tetrahedron x[0..3]: b[a] with sum_a x_a b_a^T = I; returns
+// the signed rest volume.
+double tet_shape_gradients(const Vec3* x, Vec3* b);
+
+// Rest shape-function gradients at the 8 Gauss points of hexahedron x[0..7]: b[8 q + a], and
+// v0[q] the point's share of the rest volume (signed). Returns false for a degenerate point.
+bool hex_shape_gradients(const Vec3* x, Vec3* b, double* v0);
+
+// Isochoric neo-Hookean at deformation gradient F (3 x 3, column-major in f[9]): energy density
+// (mu / 2)(J^(-2/3) tr(F^T F) - 3) returned, first Piola stress into p[9] and J^(-2/3) into
+// *jm. F with det <= 0: energy 0, stress 0, *jm 1 (the hard stop keeps springs from inverting).
+double isochoric_neo_hookean(const double* f, double mu, double* p, double* jm);
 
 }  // namespace conica

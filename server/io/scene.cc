@@ -161,6 +161,10 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   if (!(b.spread_modulus >= 0) || !std::isfinite(b.spread_modulus))
     return Error{loc.at("spread_modulus") + "spread_modulus must be >= 0 Pa (got " +
                  num(b.spread_modulus) + ")"};
+  b.shear_modulus = scene.shear_modulus();
+  if (!(b.shear_modulus >= 0) || !std::isfinite(b.shear_modulus))
+    return Error{loc.at("shear_modulus") + "shear_modulus must be >= 0 Pa (got " +
+                 num(b.shear_modulus) + ")"};
   if (b.spread_modulus > 0 && !(b.bulk_modulus > 0))
     return Error{loc.at("spread_modulus") + "spread_modulus needs bulk_modulus > 0"};
 
@@ -276,8 +280,9 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     if (o.integrator == Integrator::kImplicitEuler)
       return Error{awhere + "needs SYMPLECTIC_EULER or EXPLICIT_EULER (the implicit step couples "
                             "every node)"};
-    if (b.bulk_modulus > 0)
-      return Error{awhere + "not with bulk_modulus (the region's lists hold springs only)"};
+    if (b.bulk_modulus > 0 || b.shear_modulus > 0)
+      return Error{awhere + "not with bulk_modulus or shear_modulus (the region's lists hold "
+                            "springs only)"};
     if (!(a.tolerance() > 0) || !std::isfinite(a.tolerance()))
       return Error{awhere + "tolerance must be a positive length in m (got " + num(a.tolerance()) +
                    ")"};

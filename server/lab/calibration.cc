@@ -135,9 +135,9 @@ struct BodyGeometry {
 
 std::vector<double> surrogate_impl(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
                                    const BodyGeometry& geo, const std::vector<double>& grid,
-                                   double bulk_modulus) {
+                                   double bulk_modulus, double shear_modulus) {
   Model cell;
-  if (!make_uniaxial_cell(groups, mapping, 0.01, &cell, bulk_modulus).empty())
+  if (!make_uniaxial_cell(groups, mapping, 0.01, &cell, bulk_modulus, shear_modulus).empty())
     return std::vector<double>(grid.size(), std::numeric_limits<double>::quiet_NaN());
   std::vector<double> strains(grid.size());
   for (size_t k = 0; k < grid.size(); ++k) strains[k] = grid[k] / geo.height;
@@ -503,13 +503,15 @@ LatticeModuli lattice_moduli(const std::vector<SpringGroupSpec>& groups) {
   return m;
 }
 
-double body_poisson(const LatticeModuli& m, double kappa) {
-  const double K = (m.c11 + 2 * m.c12) / 3 + kappa, G = (m.c11 - m.c12 + 3 * m.c44) / 5;
+double lattice_shear(const LatticeModuli& m) { return (m.c11 - m.c12 + 3 * m.c44) / 5; }
+
+double body_poisson(const LatticeModuli& m, double kappa, double mu) {
+  const double K = (m.c11 + 2 * m.c12) / 3 + kappa, G = lattice_shear(m) + mu;
   return (3 * K - 2 * G) / (2 * (3 * K + G));
 }
 
-double bulk_for_poisson(const LatticeModuli& m, double nu) {
-  const double G = (m.c11 - m.c12 + 3 * m.c44) / 5;
+double bulk_for_poisson(const LatticeModuli& m, double nu, double mu) {
+  const double G = lattice_shear(m) + mu;
   const double K = 2 * G * (1 + nu) / (3 * (1 - 2 * nu));
   return std::max(0.0, K - (m.c11 + 2 * m.c12) / 3);
 }
@@ -547,7 +549,7 @@ std::vector<double> surrogate_force(const BodySpec& spec, const std::vector<Spri
   if (!build_model(spec, &m).empty() || m.planes.empty())
     return std::vector<double>(grid.size(), std::numeric_limits<double>::quiet_NaN());
   return surrogate_impl(groups, spec.mapping, {plate_height(m), cross_section(m)}, grid,
-                        spec.bulk_modulus);
+                        spec.bulk_modulus, spec.shear_modulus);
 }
 
 std::vector<double> surrogate_force(const BodySpec& spec, const ConicalCard& card,
@@ -638,15 +640,21 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   };
   // Volume stiffness: the scene's Poisson ratio (or the asked one) kept as the cards change, so
   // that kappa scales with the spring moduli and forces stay proportional to a common factor.
+  const LatticeModuli scene_moduli = lattice_moduli(spec.groups);
+  const double shear_ratio = spec.shear_modulus / lattice_shear(scene_moduli);
+  auto shear_for = [&](const std::vector<SpringGroupSpec>& groups) {
+    return spec.shear_modulus > 0 ? shear_ratio * lattice_shear(lattice_moduli(groups)) : 0.0;
+  };
   const bool with_volume = o.poisson >= 0 || spec.bulk_modulus > 0;
   const double nu = o.poisson >= 0 ? o.poisson
-                                   : body_poisson(lattice_moduli(spec.groups), spec.bulk_modulus);
+                                   : body_poisson(scene_moduli, spec.bulk_modulus,
+                                                  spec.shear_modulus);
   if (with_volume && !(nu < 0.5)) {
     r.error = "Poisson ratio must be < 0.5 (got " + fmt(nu) + ")";
     return r;
   }
   auto bulk_for = [&](const std::vector<SpringGroupSpec>& groups) {
-    return with_volume ? bulk_for_poisson(lattice_moduli(groups), nu) : 0.0;
+    return with_volume ? bulk_for_poisson(lattice_moduli(groups), nu, shear_for(groups)) : 0.0;
   };
   const double spread_ratio = spec.bulk_modulus > 0 ? spec.spread_modulus / spec.bulk_modulus : 0.0;
   if (with_volume)
@@ -655,7 +663,7 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   auto surrogate = [&](const std::vector<ConicalCard>& cards) {
     ++r.evaluations;
     const std::vector<SpringGroupSpec> groups = groups_for(cards);
-    return surrogate_impl(groups, spec.mapping, geo, r.grid, bulk_for(groups));
+    return surrogate_impl(groups, spec.mapping, geo, r.grid, bulk_for(groups), shear_for(groups));
   };
   // Best common scale of the moduli: at fixed tapers and strokes, forces are proportional to a
   // common factor on every E_c.
@@ -821,7 +829,8 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     r.moduli = lattice_moduli(r.groups);
     r.bulk_modulus = bulk_for(r.groups);
     r.spread_modulus = spread_ratio * r.bulk_modulus;
-    r.poisson = body_poisson(r.moduli, r.bulk_modulus);
+    r.shear_modulus = shear_for(r.groups);
+    r.poisson = body_poisson(r.moduli, r.bulk_modulus, r.shear_modulus);
     r.surrogate = surrogate(r.cards);
     r.surrogate_error = average_relative_error(r.surrogate, r.data, r.first);
   };
@@ -837,6 +846,7 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     s.groups = groups_for(cards);
     s.bulk_modulus = bulk_for(s.groups);
     s.spread_modulus = spread_ratio * s.bulk_modulus;
+    s.shear_modulus = shear_for(s.groups);
     Model m;
     if (s.groups.empty() || !build_model(s, &m).empty()) return std::vector<double>(n, std::nan(""));
     ++r.full_evaluations;

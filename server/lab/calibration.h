@@ -100,10 +100,13 @@ LatticeModuli lattice_moduli(const std::vector<SpringGroupSpec>& groups);
 // Small-strain Poisson ratio of a body of lattice `m` with volume stiffness kappa (Pa, added to
 // its bulk modulus; core/volume.h), from the isotropic averages K = (C11 + 2 C12) / 3 + kappa and
 // G = (C11 - C12 + 3 C44) / 5 (Voigt): nu = (3 K - 2 G) / (2 (3 K + G)).
-double body_poisson(const LatticeModuli& m, double kappa);
-// The kappa (Pa, >= 0) that gives lattice `m` the Poisson ratio nu (< 1/2): 0 when the springs
-// alone already reach it.
-double bulk_for_poisson(const LatticeModuli& m, double nu);
+// mu (Pa): shear stiffness added to G (core/volume.h).
+double body_poisson(const LatticeModuli& m, double kappa, double mu = 0);
+// The kappa (Pa, >= 0) that gives lattice `m` with added shear stiffness mu the Poisson ratio nu
+// (< 1/2): 0 when the springs alone already reach it.
+double bulk_for_poisson(const LatticeModuli& m, double nu, double mu = 0);
+// The lattice's isotropic (Voigt) shear modulus (C11 - C12 + 3 C44) / 5, Pa.
+double lattice_shear(const LatticeModuli& m);
 
 // The column floor: the smallest average relative error (over grid points first..) that any
 // sum of conical laws in parallel can reach on a force curve, every law acting as a column along
@@ -166,8 +169,9 @@ struct FitOptions {
   double rate = 500e-3 / 60; // m/s, plate speed of the full-body compression
   double poisson = -1;       // the body's small-strain Poisson ratio kept while the cards change,
                              // by the volume stiffness (bulk_for_poisson); < 0: the scene's own
-                             // (its cards and bulk_modulus), and with no bulk_modulus in the scene
-                             // none is added
+                             // (its cards, bulk_modulus and shear_modulus), and with no
+                             // bulk_modulus in the scene none is added. A scene's shear_modulus
+                             // keeps its ratio to the lattice's shear modulus.
   ShapeBounds bounds;
   std::function<void(const std::string&)> progress;  // one line per stage / iteration
 };
@@ -183,6 +187,8 @@ struct FitResult {
   double bulk_modulus = 0;        // Pa, volume stiffness of the fitted body
   double spread_modulus = 0;      // Pa, its Gauss-point spread stiffness (the scene's ratio to
                                   // bulk_modulus kept)
+  double shear_modulus = 0;       // Pa, its shear stiffness (the scene's ratio to the lattice's
+                                  // shear modulus kept)
   double poisson = 0;             // its small-strain Poisson ratio (body_poisson)
   std::vector<double> grid;       // (points) plate travel, m
   std::vector<double> data;       // (points) mean measured force, N

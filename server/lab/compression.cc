@@ -115,7 +115,8 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
 }
 
 std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
-                               double side, Model* cell, double bulk_modulus) {
+                               double side, Model* cell, double bulk_modulus,
+                               double shear_modulus) {
   BodySpec spec;
   spec.mesh = make_box_lattice(Vec3(side, side, side), {1, 1, 1});
   spec.density = 1000;
@@ -128,6 +129,7 @@ std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mappi
   }
   spec.mapping = mapping;
   spec.bulk_modulus = bulk_modulus;
+  spec.shear_modulus = shear_modulus;
   SolverOptions& o = spec.options;
   o.integrator = Integrator::kImplicitEuler;
   o.dt = 1.0;  // long step: each implicit step is a Newton step on the static equilibrium

@@ -43,9 +43,11 @@ long AllocationsDuring(F&& f) {
 TEST(AllocationTest, StepAllocatesNothing) {
   for (Integrator integ : {Integrator::kSymplecticEuler, Integrator::kExplicitEuler,
                            Integrator::kImplicitEuler})
-  for (double kappa : {0.0, 2e4}) {  // Pa: without and with volume stiffness
+  for (double kappa : {0.0, 2e4}) {  // Pa: without and with volume, spread and shear stiffness
     BodySpec b;
     b.bulk_modulus = kappa;
+    b.spread_modulus = kappa;
+    b.shear_modulus = kappa / 4;
     b.mesh = make_box_lattice(Vec3(0.04, 0.04, 0.02), {4, 4, 2});
     SpringCard conical;
     conical.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};

@@ -1,7 +1,8 @@
-// Volume stiffness against independent values: element volumes against closed forms (a
-// frustum's volume, the determinant of an affine map), their gradients and the body's forces
-// against finite differences of volume and stored energy, the implicit step against the
-// hydrostatic pressure a bulk modulus gives, and the guards of the builder.
+// Volume and shear stiffness against independent values: element volumes against closed forms
+// (a frustum's volume, the determinant of an affine map), their gradients and the body's forces
+// against finite differences of volume and stored energy, the pressure of a uniform dilation,
+// the shear stress of a simple shear, the implicit step against the pressure of a confined
+// compression, and the guards of the builder.
 #include "core/volume.h"
 
 #include <gtest/gtest.h>
@@ -87,7 +88,7 @@ SpringCard SoftHooke() {
 
 // A box lattice (or its tetrahedra) with volume stiffness (and Gauss-point spread stiffness for
 // hexahedra), nothing fixed.
-Model VolumeBody(bool tets, double kappa, double spread = 0) {
+Model VolumeBody(bool tets, double kappa, double spread = 0, double shear = 0) {
   BodySpec b;
   b.mesh = make_box_lattice(Vec3(0.02, 0.03, 0.02), {2, 3, 2});
   if (tets) {
@@ -102,15 +103,16 @@ Model VolumeBody(bool tets, double kappa, double spread = 0) {
   b.groups.push_back({"all", SoftHooke(), kAllFamilies, {}, Vec3::Zero(), 10});
   b.bulk_modulus = kappa;
   b.spread_modulus = tets ? 0 : spread;
+  b.shear_modulus = shear;
   Model m;
   EXPECT_EQ(build_model(b, &m), "");
   return m;
 }
 
 TEST(VolumeTest, ForcesAreMinusTheGradientOfTheStoredEnergy) {
-  for (int kind = 0; kind < 3; ++kind) {
-    const bool tets = kind == 1;
-    const Model m = VolumeBody(tets, 2e5, kind == 2 ? 1.5e5 : 0);
+  for (int kind = 0; kind < 5; ++kind) {
+    const bool tets = kind == 1 || kind == 4;
+    const Model m = VolumeBody(tets, 2e5, kind == 2 ? 1.5e5 : 0, kind >= 3 ? 4e4 : 0);
     State s = make_state(m);
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> u(-1e-3, 1e-3);
@@ -125,7 +127,7 @@ TEST(VolumeTest, ForcesAreMinusTheGradientOfTheStoredEnergy) {
         q.x[i][c] -= h;
         const double fd = -(potential_energy(m, p) - potential_energy(m, q)) / (2 * h);
         EXPECT_NEAR(ws.force[i][c], fd, 1e-6 * (1 + std::abs(fd)))
-            << (tets ? "tets" : kind == 2 ? "hexes with spread" : "hexes") << " node " << i
+            << "kind " << kind << " node " << i
             << " axis " << c;
       }
   }
@@ -192,6 +194,30 @@ TEST(VolumeTest, SpreadResistsTheLayerModeThatOneVolumePerElementLeavesFree) {
   }
   EXPECT_GT(expected, 0);
   EXPECT_NEAR(potential_energy(m, s) - e_springs, expected, 1e-9 * expected);
+}
+
+TEST(VolumeTest, SimpleShearCarriesTheShearModulusAtAnyAngle) {
+  // F = I + gamma e_x e_z^T: J = 1 and F^-T has no xz entry, so the isochoric neo-Hookean first
+  // Piola stress is P_xz = mu gamma exactly; the top face carries mu gamma A along x.
+  const double mu = 3e4, H = 0.02;
+  for (bool tets : {false, true}) {
+    Model m = VolumeBody(tets, 0, 0, mu);
+    Model springs_only = m;
+    springs_only.shear_modulus = 0;
+    for (double gamma : {1e-3, 0.3}) {
+      State st = make_state(m);
+      for (int i = 0; i < m.num_nodes(); ++i) st.x[i].x() += gamma * m.rest[i].z();
+      Workspace ws(m), ws0(springs_only);
+      compute_forces(m, st, ws);
+      compute_forces(springs_only, st, ws0);
+      double fx = 0;
+      for (int i = 0; i < m.num_nodes(); ++i)
+        if (m.rest[i].z() > H - 1e-9) fx += ws.force[i].x() - ws0.force[i].x();
+      const double area = 0.02 * 0.03;
+      EXPECT_NEAR(fx / (-mu * gamma * area), 1.0, 1e-9) << (tets ? "tets" : "hexes") << ", gamma "
+                                                         << gamma;
+    }
+  }
 }
 
 TEST(VolumeTest, ImplicitStepHoldsAConfinedPressureAtTheBulkModulus) {

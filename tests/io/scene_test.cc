@@ -70,11 +70,16 @@ TEST(SceneTest, WrongScenesAreRefusedWithLineAndReason) {
   const std::string neg = with("density: 1000", "density: -3");
   EXPECT_NE(neg.find("s.pbtxt:4:1: density must be > 0"), std::string::npos) << neg;
   // A negative or non-finite bulk modulus at its line.
-  for (const char* k : {"-1", "nan", "inf"}) {
-    const std::string bulk = with("density: 1000", std::string("density: 1000 bulk_modulus: ") + k);
-    EXPECT_NE(bulk.find("s.pbtxt:4:"), std::string::npos) << bulk;
-    EXPECT_NE(bulk.find("bulk_modulus must be >= 0 Pa"), std::string::npos) << bulk;
-  }
+  for (const char* field : {"bulk_modulus", "spread_modulus", "shear_modulus"})
+    for (const char* k : {"-1", "nan", "inf"}) {
+      const std::string before = std::string(field) == "bulk_modulus" ? "" : " bulk_modulus: 1";
+      const std::string e =
+          with("density: 1000", "density: 1000" + before + "\n" + field + ": " + k);
+      EXPECT_NE(e.find("s.pbtxt:5:"), std::string::npos) << e;
+      EXPECT_NE(e.find(std::string(field) + " must be >= 0 Pa"), std::string::npos) << e;
+    }
+  const std::string lone = with("density: 1000", "density: 1000 spread_modulus: 5");
+  EXPECT_NE(lone.find("spread_modulus needs bulk_modulus > 0"), std::string::npos) << lone;
   // Invalid card at its group's line, naming the parameter.
   const std::string card = with("d: 1e-3", "d: 0");
   EXPECT_NE(card.find("s.pbtxt:5:1: group 0 (\"g\"): d must be > 0"), std::string::npos) << card;

@@ -53,8 +53,9 @@ BodySpec CubeSpec(const SpringCard& card, int cells, double H) {
 // (Cauchy-Born, pair springs) is C_ijkl = (1/V) sum_s k_s l0^2 d_i d_j d_k d_l
 //                                      = K / (28 L) sum over the 28 directions of d_i d_j d_k d_l.
 // With lateral contraction free, E_z = 1 / S_zzzz, S = C^-1 in Voigt form.
-// kappa (Pa): volume stiffness, which adds kappa to C11 and C12 (a bulk term kappa tr(e)^2 / 2).
-double LatticeYoungZ(double K, double L, double kappa = 0) {
+// kappa (Pa): volume stiffness, which adds kappa to C11 and C12 (a bulk term kappa tr(e)^2 / 2);
+// mu (Pa): shear stiffness, an isotropic term of shear modulus mu and no bulk modulus.
+double LatticeYoungZ(double K, double L, double kappa = 0, double mu = 0) {
   std::vector<Vec3> dirs;
   for (int i = 0; i < 8; ++i)
     for (int j = i + 1; j < 8; ++j) {
@@ -68,7 +69,11 @@ double LatticeYoungZ(double K, double L, double kappa = 0) {
     for (int p = 0; p < 6; ++p)
       for (int q = 0; q < 6; ++q) C(p, q) += d[vi[p]] * d[vj[p]] * d[vi[q]] * d[vj[q]];
   C *= K / (28 * L);
-  C.topLeftCorner<3, 3>().array() += kappa;
+  C.topLeftCorner<3, 3>().array() += kappa - 2 * mu / 3;
+  for (int p = 0; p < 3; ++p) {
+    C(p, p) += 2 * mu;
+    C(p + 3, p + 3) += mu;
+  }
   // Voigt compliance: S = C^-1 (engineering shear strains); S(2,2) is S_zzzz.
   const Eigen::Matrix<double, 6, 6> S = C.inverse();
   return 1.0 / S(2, 2);
@@ -114,13 +119,15 @@ TEST(CompressionTest, CellSurrogateMatchesFullBodyWhileHomogeneous) {
   EXPECT_NEAR(s0[0] / 1e-5 / LatticeYoungZ(law.k0(), card.conical.L0), 1.0, 1e-3);
 }
 
-TEST(CompressionTest, VolumeStiffnessAddsTheBulkTermAndKeepsTheBodyLoadBearing) {
+TEST(CompressionTest, VolumeAndShearStiffnessKeepTheCompressedBodyStable) {
   // Small strain: the cell's modulus is that of C + kappa (1 1 1)(1 1 1)^T (kappa = 20 E0 gives
   // the body a Poisson ratio of 0.49). The full body between frictionless plates follows the cell
-  // while it stays homogeneous, here to 27 % strain, where this card's edges enter their
-  // stiffening phase. Past it the pair-spring body collapses (its force falls to a fraction of
-  // the cell's, as in docs/paper-reproduction.md), while with volume stiffness it leaves the
-  // homogeneous state but keeps carrying a rising load near the cell's.
+  // while it stays homogeneous: pair springs alone and with volume stiffness to 27 % strain,
+  // where this card's edges enter their stiffening phase. Past it the pair-spring body collapses
+  // (its force falls to a fraction of the cell's, as in docs/paper-reproduction.md); with volume
+  // stiffness it leaves the homogeneous state but keeps carrying a rising load near the cell's;
+  // with shear stiffness too (mu = E0 / 3, and the Gauss-point spread) it stays homogeneous to
+  // 36 %.
   SpringCard card;
   card.law = LawKind::kConical;
   card.conical = ConicalCard{2e8, 1.2e-3, 2e-3, 8e-3, 10e-3, 3};
@@ -130,26 +137,36 @@ TEST(CompressionTest, VolumeStiffnessAddsTheBulkTermAndKeepsTheBodyLoadBearing) 
   const double H = 0.02;
   std::vector<double> strains;
   for (int i = 1; i <= 12; ++i) strains.push_back(0.03 * i);
-  for (double kappa : {20 * E0, 0.0}) {
+  enum Body { kSprings, kVolume, kVolumeShear };
+  for (Body kind : {kSprings, kVolume, kVolumeShear}) {
+    const double kappa = kind == kSprings ? 0 : 20 * E0;
     BodySpec spec = CubeSpec(card, 3, H);
     spec.bulk_modulus = kappa;
+    spec.spread_modulus = kind == kVolumeShear ? kappa : 0;
+    spec.shear_modulus = kind == kVolumeShear ? E0 / 3 : 0;
     Model cell, body;
-    ASSERT_EQ(make_uniaxial_cell(spec.groups, Mapping::kStrain, 0.01, &cell, kappa), "");
-    const double Ek = LatticeYoungZ(law.k0(), card.conical.L0, kappa);
-    EXPECT_NEAR(cell_stress_curve(cell, {1e-5})[0] / 1e-5 / Ek, 1.0, 1e-3);
+    ASSERT_EQ(make_uniaxial_cell(spec.groups, Mapping::kStrain, 0.01, &cell, kappa,
+                                 spec.shear_modulus),
+              "");
+    // Small strain: the lattice, the bulk term and the shear term (C11 += 4/3 mu, C12 -= 2/3 mu,
+    // C44 += mu) in the analytic modulus.
+    const double Ek = LatticeYoungZ(law.k0(), card.conical.L0, kappa, spec.shear_modulus);
+    EXPECT_NEAR(cell_stress_curve(cell, {1e-5})[0] / 1e-5 / Ek, 1.0, 1e-3) << "body " << kind;
     ASSERT_EQ(build_model(spec, &body), "");
     const Curve c = compression_curve(body, 2e-3, 0.36, 12);
     const std::vector<double> sigma = cell_stress_curve(cell, strains);
-    for (int i = 1; i <= 8; ++i)
+    const int homogeneous = kind == kVolumeShear ? 12 : 8;
+    for (int i = 1; i <= homogeneous; ++i)
       EXPECT_NEAR(c[i].force / (sigma[i - 1] * H * H), 1.0, 0.01)
-          << "strain " << strains[i - 1] << ", kappa " << kappa;
+          << "strain " << strains[i - 1] << ", body " << kind;
     const double end = c[12].force / (sigma[11] * H * H);
-    if (kappa > 0) {
+    if (kind == kSprings) {
+      EXPECT_LT(end, 0.5) << "pair springs alone";
+    } else {
       EXPECT_GT(Ek, 1.2 * E0);  // the bulk term matters at this kappa (1.26 E0)
       EXPECT_GT(end, 0.8) << "with volume stiffness";
-      for (int i = 9; i <= 12; ++i) EXPECT_GT(c[i].force, c[i - 1].force) << "strain " << strains[i - 1];
-    } else {
-      EXPECT_LT(end, 0.5) << "pair springs alone";
+      for (int i = 9; i <= 12; ++i)
+        EXPECT_GT(c[i].force, c[i - 1].force) << "strain " << strains[i - 1] << ", body " << kind;
     }
   }
 }

@@ -139,10 +139,10 @@ void register_calibrate(CLI::App& app, Runner* run) {
       std::snprintf(line, sizeof line,
                     "# Lattice: C11 %.6g Pa, C12 = C44 %.6g Pa, E %.6g Pa, Poisson %.4g, Zener "
                     "ratio 2 C44 / (C11 - C12) = %.4g (1: isotropic); volume stiffness %.6g Pa, "
-                    "body Poisson %.4g.\n"
+                    "shear stiffness %.6g Pa, body Poisson %.4g.\n"
                     "# Average relative error (strain >= %g): surrogate %.3f %%, full body %s.\n",
                     r.moduli.c11, r.moduli.c12, r.moduli.young, r.moduli.poisson,
-                    r.moduli.anisotropy, r.bulk_modulus, r.poisson, o->skip_strain,
+                    r.moduli.anisotropy, r.bulk_modulus, r.shear_modulus, r.poisson, o->skip_strain,
                     100 * r.surrogate_error, full);
       head += line;
       if (r.floor.error >= 0) {
@@ -161,6 +161,10 @@ void register_calibrate(CLI::App& app, Runner* run) {
           std::snprintf(line, sizeof line, "spread_modulus: %.9g\n", r.spread_modulus);
           out << line;
         }
+      }
+      if (r.shear_modulus > 0) {
+        std::snprintf(line, sizeof line, "shear_modulus: %.9g\n", r.shear_modulus);
+        out << line;
       }
       for (const auto& g : r.groups)
         if (g.card.law == LawKind::kConical) out << group_fragment(g);
