@@ -1,5 +1,6 @@
 // Advancing a body in time. A tick runs in named stages:
-//   probe input (already in State) -> spring forces -> contact -> integrate -> hard stop -> guard
+//   probe input (already in State) -> spring forces -> element volume and shear terms (volume.h,
+//   when the model has them) -> contact -> integrate -> hard stop -> guard
 // All scratch lives in a Workspace sized once per model: a step allocates nothing, does no I/O
 // and never throws.
 //
