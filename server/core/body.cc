@@ -213,20 +213,17 @@ std::string build_model(const BodySpec& spec, Model* out) {
   }
   for (const auto& n : mesh.nodes)
     if (!n.allFinite()) return "the mesh has a non-finite node coordinate";
-  if (!(spec.bulk_modulus >= 0) || !std::isfinite(spec.bulk_modulus))
-    return "bulk_modulus must be >= 0 Pa (got " + fmt(spec.bulk_modulus) + ")";
-  if (!(spec.spread_modulus >= 0) || !std::isfinite(spec.spread_modulus))
-    return "spread_modulus must be >= 0 Pa (got " + fmt(spec.spread_modulus) + ")";
+  for (const auto& [name, value] : {std::pair{"bulk_modulus", spec.bulk_modulus},
+                                    std::pair{"spread_modulus", spec.spread_modulus},
+                                    std::pair{"shear_modulus", spec.shear_modulus}}) {
+    if (!(value >= 0) || !std::isfinite(value))
+      return std::string(name) + " must be >= 0 Pa (got " + fmt(value) + ")";
+    if (value > 0 && spec.options.active_region)
+      return std::string(name) + " and the active region do not go together: the region's "
+             "lists hold springs only";
+  }
   if (spec.spread_modulus > 0 && !(spec.bulk_modulus > 0))
     return "spread_modulus needs bulk_modulus > 0";
-  if (!(spec.shear_modulus >= 0) || !std::isfinite(spec.shear_modulus))
-    return "shear_modulus must be >= 0 Pa (got " + fmt(spec.shear_modulus) + ")";
-  if (spec.shear_modulus > 0 && spec.options.active_region)
-    return "shear_modulus and the active region do not go together: the region's lists hold "
-           "springs only";
-  if (spec.bulk_modulus > 0 && spec.options.active_region)
-    return "bulk_modulus and the active region do not go together: the region's lists hold "
-           "springs only";
 
   // Element volumes, lumped masses and raw springs with volume shares.
   std::vector<double> mass(nn, 0.0);
@@ -333,18 +330,16 @@ std::string build_model(const BodySpec& spec, Model* out) {
   m.bulk_modulus = spec.bulk_modulus;
   if (m.bulk_modulus > 0) {
     // An element of no volume has no J; a hundred-millionth of the mean is taken for none.
-    std::array<Vec3, 8> x, g;
+    Vec3 g[8];
     double total = 0;
     for (const auto& t : m.tetrahedra) {
-      for (int a = 0; a < 4; ++a) x[a] = mesh.nodes[t[a]];
-      m.tet_rest_volume.push_back(tet_volume_gradient(x.data(), g.data()));
+      m.tet_rest_volume.push_back(element_volume(mesh.nodes, t.data(), 4, g));
       total += std::abs(m.tet_rest_volume.back());
     }
     m.spread_modulus = spec.spread_modulus;
     for (const auto& h : m.hexahedra) {
-      for (int a = 0; a < 8; ++a) x[a] = mesh.nodes[h[a]];
       double vq[8];
-      m.hex_rest_volume.push_back(hex_volume_gradient(x.data(), g.data(), vq));
+      m.hex_rest_volume.push_back(element_volume(mesh.nodes, h.data(), 8, g, vq));
       total += std::abs(m.hex_rest_volume.back());
       if (m.spread_modulus > 0) m.hex_rest_gauss.insert(m.hex_rest_gauss.end(), vq, vq + 8);
     }

@@ -6,7 +6,6 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
-#include <array>
 #include <bit>
 #include <cstdint>
 #include <cmath>
@@ -334,40 +333,34 @@ void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep) {
               m.options.gravity.data(), m.options.mass_damping, ws.force.front().data());
 }
 
-// Pressure forces of the elements' volume stiffness (core/volume.h), added to ws.force; every
-// element's dV/dx is kept for the implicit system.
+// Pressure forces of the elements' volume stiffness and the hexahedra's Gauss-point spread
+// (core/volume.h), added to ws.force; every element's dV/dx (and the spread's gradients) are kept
+// for the implicit system.
 void volume_forces(const Model& m, const State& s, Workspace& ws) {
   if (!(m.bulk_modulus > 0)) return;
-  const double kappa = m.bulk_modulus;
-  std::array<Vec3, 8> x;
-  auto element = [&](const int* nodes, int n, double v0, Vec3* g, double* coef) {
-    for (int a = 0; a < n; ++a) x[a] = s.x[nodes[a]];
-    const double v = n == 4 ? tet_volume_gradient(x.data(), g) : hex_volume_gradient(x.data(), g);
-    *coef = kappa / std::abs(v0);
-    const double p = -*coef * (v - v0);
-    for (int a = 0; a < n; ++a) ws.force[nodes[a]] += p * g[a];
-  };
+  const bool spread = m.spread_modulus > 0;
   Vec3* g = ws.volume_grad.data();
   double* coef = ws.volume_coef.data();
-  const int nt = static_cast<int>(m.tetrahedra.size());
-  for (int e = 0; e < nt; ++e, g += 4, ++coef)
-    element(m.tetrahedra[e].data(), 4, m.tet_rest_volume[e], g, coef);
-  const int nh = static_cast<int>(m.hexahedra.size());
-  if (!(m.spread_modulus > 0)) {
-    for (int e = 0; e < nh; ++e, g += 8, ++coef)
-      element(m.hexahedra[e].data(), 8, m.hex_rest_volume[e], g, coef);
-    return;
-  }
   double vq[8];
-  for (int e = 0; e < nh; ++e, g += 8, ++coef) {
-    const int* nodes = m.hexahedra[e].data();
-    Vec3* gq = ws.spread_grad.data() + 64 * e;
-    for (int a = 0; a < 8; ++a) x[a] = s.x[nodes[a]];
-    const double v0 = m.hex_rest_volume[e];
-    const double v = hex_volume_gradient(x.data(), g, vq, gq);
-    *coef = kappa / std::abs(v0);
+  auto element = [&](const int* nodes, int n, double v0, Vec3* gq) {
+    const double v = element_volume(s.x, nodes, n, g, gq ? vq : nullptr, gq);
+    *coef = m.bulk_modulus / std::abs(v0);
     const double p = -*coef * (v - v0);
-    for (int a = 0; a < 8; ++a) ws.force[nodes[a]] += p * g[a];
+    for (int a = 0; a < n; ++a) ws.force[nodes[a]] += p * g[a];
+    g += n;
+    ++coef;
+    return v;
+  };
+  const int nt = static_cast<int>(m.tetrahedra.size());
+  for (int e = 0; e < nt; ++e) element(m.tetrahedra[e].data(), 4, m.tet_rest_volume[e], nullptr);
+  const int nh = static_cast<int>(m.hexahedra.size());
+  for (int e = 0; e < nh; ++e) {
+    const int* nodes = m.hexahedra[e].data();
+    const double v0 = m.hex_rest_volume[e];
+    Vec3* gq = spread ? ws.spread_grad.data() + 64 * e : nullptr;
+    const Vec3* gh = g;  // this hexahedron's dV/dx
+    const double v = element(nodes, 8, v0, gq);
+    if (!spread) continue;
     // Spread: force -(8 kappa_s / |V0|) sum_q d_q G_q with G_q = g_q - g / 8.
     const double cs = 8 * m.spread_modulus / std::abs(v0);
     ws.spread_coef[e] = cs;
@@ -376,7 +369,7 @@ void volume_forces(const Model& m, const State& s, Workspace& ws) {
     for (int q = 0; q < 8; ++q) {
       const double dq = -cs * ((vq[q] - v0q[q]) - mean);
       for (int a = 0; a < 8; ++a) {
-        gq[8 * q + a] -= g[a] / 8;
+        gq[8 * q + a] -= gh[a] / 8;
         ws.force[nodes[a]] += dq * gq[8 * q + a];
       }
     }
@@ -386,28 +379,21 @@ void volume_forces(const Model& m, const State& s, Workspace& ws) {
 // Shear stiffness forces (core/volume.h), added to ws.force.
 void shear_forces(const Model& m, const State& s, Workspace& ws) {
   if (!(m.shear_modulus > 0)) return;
-  const double mu = m.shear_modulus;
   const Vec3* b = m.shear_b.data();
   const double* v0 = m.shear_v0.data();
   double* coef = ws.shear_coef.data();
-  auto point = [&](const int* nodes, int n, const Vec3* bq, double w) {
-    Mat3 F = Mat3::Zero();
-    for (int a = 0; a < n; ++a) F += s.x[nodes[a]] * bq[a].transpose();
+  auto point = [&](const int* nodes, int n) {
+    const Mat3 F = deformation_gradient(s.x, nodes, n, b);
     Mat3 P;
     double jm;
-    isochoric_neo_hookean(F.data(), mu, P.data(), &jm);
-    for (int a = 0; a < n; ++a) ws.force[nodes[a]] -= w * (P * bq[a]);
-    *coef++ = w * mu * jm;
+    isochoric_neo_hookean(F.data(), m.shear_modulus, P.data(), &jm);
+    for (int a = 0; a < n; ++a) ws.force[nodes[a]] -= *v0 * (P * b[a]);
+    *coef++ = *v0++ * m.shear_modulus * jm;
+    b += n;
   };
-  for (const auto& t : m.tetrahedra) {
-    point(t.data(), 4, b, *v0++);
-    b += 4;
-  }
+  for (const auto& t : m.tetrahedra) point(t.data(), 4);
   for (const auto& h : m.hexahedra)
-    for (int q = 0; q < 8; ++q) {
-      point(h.data(), 8, b, *v0++);
-      b += 8;
-    }
+    for (int q = 0; q < 8; ++q) point(h.data(), 8);
 }
 
 void hard_stop_project(const Model& m, State& s, Workspace& ws);
@@ -958,25 +944,20 @@ double potential_energy(const Model& m, const State& s) {
     }
   }
   if (m.bulk_modulus > 0) {
-    std::array<Vec3, 8> x, g;
-    auto element = [&](const int* nodes, int n, double v0) {
-      for (int a = 0; a < n; ++a) x[a] = s.x[nodes[a]];
-      const double v =
-          n == 4 ? tet_volume_gradient(x.data(), g.data()) : hex_volume_gradient(x.data(), g.data());
-      e += 0.5 * m.bulk_modulus / std::abs(v0) * (v - v0) * (v - v0);
-    };
-    for (size_t t = 0; t < m.tetrahedra.size(); ++t)
-      element(m.tetrahedra[t].data(), 4, m.tet_rest_volume[t]);
-    for (size_t h = 0; h < m.hexahedra.size(); ++h)
-      element(m.hexahedra[h].data(), 8, m.hex_rest_volume[h]);
-    for (size_t h = 0; h < m.hexahedra.size() && m.spread_modulus > 0; ++h) {
-      for (int a = 0; a < 8; ++a) x[a] = s.x[m.hexahedra[h][a]];
-      double vq[8];
+    Vec3 g[8];
+    double vq[8];
+    const bool spread = m.spread_modulus > 0;
+    for (size_t t = 0; t < m.tetrahedra.size(); ++t) {
+      const double d = element_volume(s.x, m.tetrahedra[t].data(), 4, g) - m.tet_rest_volume[t];
+      e += 0.5 * m.bulk_modulus / std::abs(m.tet_rest_volume[t]) * d * d;
+    }
+    for (size_t h = 0; h < m.hexahedra.size(); ++h) {
       const double v0 = m.hex_rest_volume[h];
-      const double mean = (hex_volume_gradient(x.data(), g.data(), vq) - v0) / 8;
-      for (int q = 0; q < 8; ++q) {
-        const double d = vq[q] - m.hex_rest_gauss[8 * h + q] - mean;
-        e += 0.5 * 8 * m.spread_modulus / std::abs(v0) * d * d;
+      const double d = element_volume(s.x, m.hexahedra[h].data(), 8, g, vq) - v0;
+      e += 0.5 * m.bulk_modulus / std::abs(v0) * d * d;
+      for (int q = 0; q < 8 && spread; ++q) {
+        const double dq = vq[q] - m.hex_rest_gauss[8 * h + q] - d / 8;
+        e += 0.5 * 8 * m.spread_modulus / std::abs(v0) * dq * dq;
       }
     }
   }
@@ -984,8 +965,7 @@ double potential_energy(const Model& m, const State& s) {
     const Vec3* b = m.shear_b.data();
     const double* v0 = m.shear_v0.data();
     auto point = [&](const int* nodes, int n) {
-      Mat3 F = Mat3::Zero();
-      for (int a = 0; a < n; ++a) F += s.x[nodes[a]] * b[a].transpose();
+      const Mat3 F = deformation_gradient(s.x, nodes, n, b);
       Mat3 P;
       double jm;
       e += *v0++ * isochoric_neo_hookean(F.data(), m.shear_modulus, P.data(), &jm);

@@ -68,6 +68,20 @@ double hex_volume_gradient(const Vec3* x, Vec3* g, double* vq, Vec3* gq) {
   return v;
 }
 
+double element_volume(const std::vector<Vec3>& x, const int* nodes, int n, Vec3* g, double* vq,
+                      Vec3* gq) {
+  Vec3 p[8];
+  for (int a = 0; a < n; ++a) p[a] = x[nodes[a]];
+  return n == 4 ? tet_volume_gradient(p, g) : hex_volume_gradient(p, g, vq, gq);
+}
+
+Eigen::Matrix3d deformation_gradient(const std::vector<Vec3>& x, const int* nodes, int n,
+                                     const Vec3* b) {
+  Eigen::Matrix3d F = Eigen::Matrix3d::Zero();
+  for (int a = 0; a < n; ++a) F += x[nodes[a]] * b[a].transpose();
+  return F;
+}
+
 double tet_shape_gradients(const Vec3* x, Vec3* b) {
   Eigen::Matrix3d dm;
   dm << x[1] - x[0], x[2] - x[0], x[3] - x[0];

@@ -28,6 +28,8 @@
 
 #include <Eigen/Geometry>
 
+#include <vector>
+
 #include "core/mesh.h"
 
 namespace conica {
@@ -39,6 +41,15 @@ double tet_volume_gradient(const Vec3* x, Vec3* g);
 // With vq and gq: also the share of each Gauss point q (det of the map's Jacobian there, weight
 // 1) in vq[q] and its gradient in gq[8 q + a]; the shares sum to the volume.
 double hex_volume_gradient(const Vec3* x, Vec3* g, double* vq = nullptr, Vec3* gq = nullptr);
+
+// Volume of the element on nodes[0..n) of x (n = 4: tetrahedron, 8: hexahedron) and dV/dx_a into
+// g[0..n); for a hexahedron also its Gauss-point shares and their gradients (see above).
+double element_volume(const std::vector<Vec3>& x, const int* nodes, int n, Vec3* g,
+                      double* vq = nullptr, Vec3* gq = nullptr);
+
+// Deformation gradient sum_a x_a b_a^T of the element (or Gauss point) on nodes[0..n) of x.
+Eigen::Matrix3d deformation_gradient(const std::vector<Vec3>& x, const int* nodes, int n,
+                                     const Vec3* b);
 
 // Rest shape-function gradients of a tetrahedron x[0..3]: b[a] with sum_a x_a b_a^T = I; returns
 // the signed rest volume.

@@ -657,13 +657,22 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     return with_volume ? bulk_for_poisson(lattice_moduli(groups), nu, shear_for(groups)) : 0.0;
   };
   const double spread_ratio = spec.bulk_modulus > 0 ? spec.spread_modulus / spec.bulk_modulus : 0.0;
+  // The element terms of a body with `groups` as its springs (BodySpec fields).
+  struct ElementModuli {
+    double bulk, spread, shear;
+  };
+  auto element_moduli = [&](const std::vector<SpringGroupSpec>& groups) {
+    const double bulk = bulk_for(groups);
+    return ElementModuli{bulk, spread_ratio * bulk, shear_for(groups)};
+  };
   if (with_volume)
     say("volume stiffness: Poisson ratio " + fmt(nu, 4) + " kept while fitting (bulk modulus at "
         "the scene's card " + fmt(bulk_for(spec.groups), 5) + " Pa)");
   auto surrogate = [&](const std::vector<ConicalCard>& cards) {
     ++r.evaluations;
     const std::vector<SpringGroupSpec> groups = groups_for(cards);
-    return surrogate_impl(groups, spec.mapping, geo, r.grid, bulk_for(groups), shear_for(groups));
+    const ElementModuli em = element_moduli(groups);
+    return surrogate_impl(groups, spec.mapping, geo, r.grid, em.bulk, em.shear);
   };
   // Best common scale of the moduli: at fixed tapers and strokes, forces are proportional to a
   // common factor on every E_c.
@@ -827,9 +836,10 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     r.card = r.cards[0];
     r.groups = groups_for(r.cards);
     r.moduli = lattice_moduli(r.groups);
-    r.bulk_modulus = bulk_for(r.groups);
-    r.spread_modulus = spread_ratio * r.bulk_modulus;
-    r.shear_modulus = shear_for(r.groups);
+    const ElementModuli em = element_moduli(r.groups);
+    r.bulk_modulus = em.bulk;
+    r.spread_modulus = em.spread;
+    r.shear_modulus = em.shear;
     r.poisson = body_poisson(r.moduli, r.bulk_modulus, r.shear_modulus);
     r.surrogate = surrogate(r.cards);
     r.surrogate_error = average_relative_error(r.surrogate, r.data, r.first);
@@ -844,9 +854,10 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   auto full = [&](const std::vector<ConicalCard>& cards) {
     BodySpec s = spec;
     s.groups = groups_for(cards);
-    s.bulk_modulus = bulk_for(s.groups);
-    s.spread_modulus = spread_ratio * s.bulk_modulus;
-    s.shear_modulus = shear_for(s.groups);
+    const ElementModuli em = element_moduli(s.groups);
+    s.bulk_modulus = em.bulk;
+    s.spread_modulus = em.spread;
+    s.shear_modulus = em.shear;
     Model m;
     if (s.groups.empty() || !build_model(s, &m).empty()) return std::vector<double>(n, std::nan(""));
     ++r.full_evaluations;
