@@ -1,5 +1,5 @@
 // One simulation step for the paper's 320-node cube and a 4,096-node (16^3) block, with conical
-// and with linear (Hooke) springs, for each integrator; and the block with volume stiffness.
+// and with linear (Hooke) springs, for each integrator; and the block with element terms.
 //   build/bin/bench_step --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
@@ -11,9 +11,9 @@ namespace {
 using namespace conica;
 
 // Nodes per side: 320-node cube is {8, 8, 5}; the block is {16, 16, 16}.
-// bulk, spread: volume stiffness (Pa), 0 for none.
+// bulk, spread, shear: element terms (Pa), 0 for none.
 Model MakeBody(std::array<int, 3> nodes, bool conical, Integrator integ, double bulk = 0,
-               double spread = 0) {
+               double spread = 0, double shear = 0) {
   BodySpec b;
   const double h = 0.01;  // 1 cm lattice
   b.mesh = make_box_lattice(Vec3(h * (nodes[0] - 1), h * (nodes[1] - 1), h * (nodes[2] - 1)),
@@ -36,21 +36,18 @@ Model MakeBody(std::array<int, 3> nodes, bool conical, Integrator integ, double 
   b.options.mass_damping = 5;
   b.bulk_modulus = bulk;
   b.spread_modulus = spread;
+  b.shear_modulus = shear;
   b.probes.push_back(ProbeSpec{0.008, 0});
   Model m;
   if (!build_model(b, &m).empty()) std::abort();
   return m;
 }
 
-void BM_Step(benchmark::State& state) {
-  const bool big = state.range(0) == 1;
-  const bool conical = state.range(1) == 1;
-  const auto integ = static_cast<Integrator>(state.range(2));
-  const Model m = MakeBody(big ? std::array<int, 3>{16, 16, 16} : std::array<int, 3>{8, 8, 5},
-                           conical, integ);
+// Presses the probe into the top of m so that springs leave their linear phase, settles 300
+// steps, then times one step per iteration. Returns the state at the end.
+State PressAndTime(benchmark::State& state, const Model& m) {
   State s = make_state(m);
   Workspace ws(m);
-  // Press the probe into the top so that springs leave their linear phase.
   Vec3 top = Vec3::Zero();
   for (const Vec3& x : m.rest) top = top.cwiseMax(x);
   set_probe(s, 0, Vec3(top.x() / 2, top.y() / 2, top.z() + 0.008 - 0.006));
@@ -59,6 +56,16 @@ void BM_Step(benchmark::State& state) {
     step(m, s, ws);
     benchmark::DoNotOptimize(s.x.data());
   }
+  return s;
+}
+
+void BM_Step(benchmark::State& state) {
+  const bool big = state.range(0) == 1;
+  const bool conical = state.range(1) == 1;
+  const auto integ = static_cast<Integrator>(state.range(2));
+  const Model m = MakeBody(big ? std::array<int, 3>{16, 16, 16} : std::array<int, 3>{8, 8, 5},
+                           conical, integ);
+  PressAndTime(state, m);
   state.counters["nodes"] = m.num_nodes();
   state.counters["springs"] = m.num_springs();
   state.counters["ns_per_spring"] = benchmark::Counter(
@@ -68,26 +75,19 @@ void BM_Step(benchmark::State& state) {
                  integrator_name(integ));
 }
 
-// The 4,096-node conical block with volume stiffness: range(0) 0 none, 1 bulk modulus, 2 bulk
-// and spread moduli (each 1 kPa: the lattice's own bulk modulus is about 3 kPa, so the explicit
-// step stays stable and the cost is that of the terms, not of rollbacks); range(1) integrator.
+// The 4,096-node conical block with element terms: range(0) 0 none, 1 bulk modulus, 2 bulk and
+// spread moduli, 3 bulk, spread and shear moduli (each 1 kPa: the lattice's own bulk modulus is
+// about 3 kPa, so the explicit step stays stable and the cost is that of the terms, not of
+// rollbacks); range(1) integrator.
 void BM_StepVolume(benchmark::State& state) {
-  const int vol = static_cast<int>(state.range(0));
+  const int terms = static_cast<int>(state.range(0));
   const auto integ = static_cast<Integrator>(state.range(1));
-  const Model m = MakeBody({16, 16, 16}, true, integ, vol > 0 ? 1e3 : 0, vol > 1 ? 1e3 : 0);
-  State s = make_state(m);
-  Workspace ws(m);
-  Vec3 top = Vec3::Zero();
-  for (const Vec3& x : m.rest) top = top.cwiseMax(x);
-  set_probe(s, 0, Vec3(top.x() / 2, top.y() / 2, top.z() + 0.008 - 0.006));
-  for (int i = 0; i < 300; ++i) step(m, s, ws);
-  for (auto _ : state) {
-    step(m, s, ws);
-    benchmark::DoNotOptimize(s.x.data());
-  }
+  const Model m = MakeBody({16, 16, 16}, true, integ, terms > 0 ? 1e3 : 0, terms > 1 ? 1e3 : 0,
+                           terms > 2 ? 1e3 : 0);
+  const State s = PressAndTime(state, m);
   state.counters["rollbacks"] = static_cast<double>(s.counters.rollbacks);
-  state.SetLabel(std::string("block4096/") + (vol == 0 ? "springs" : vol == 1 ? "bulk" : "bulk+spread") +
-                 "/" + integrator_name(integ));
+  static const char* const kNames[] = {"springs", "bulk", "bulk+spread", "bulk+spread+shear"};
+  state.SetLabel(std::string("block4096/") + kNames[terms] + "/" + integrator_name(integ));
 }
 
 void Args(benchmark::internal::Benchmark* b) {
@@ -143,7 +143,7 @@ void BM_ImplicitBudget(benchmark::State& state) {
 
 BENCHMARK(BM_Step)->Apply(Args)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_StepVolume)
-    ->ArgsProduct({{0, 1, 2}, {0, 2}})
+    ->ArgsProduct({{0, 1, 2, 3}, {0, 2}})
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ImplicitBudget)
     ->Args({1, 2})

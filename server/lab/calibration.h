@@ -149,10 +149,9 @@ struct FitOptions {
   int full_iterations = 3;   // Levenberg-Marquardt through the full body (0: verify only;
                              // < 0: no full-body run at all)
   int full_grid = 4;         // one card: before the full-body refinement, a grid of full_grid
-                             // tapers x full_grid strokes (plain law; pre-compressed starts were
-                             // worse on the phantom) is compressed in the full body, each modulus
-                             // scaled in closed form, and the best shape kept as the start when
-                             // it beats the surrogate optima (0: none). The
+                             // tapers x full_grid strokes (plain law) is compressed in the full
+                             // body, each modulus scaled in closed form, and the best shape kept
+                             // as the start when it beats the surrogate optima (0: none). The
                              // surrogate's optimum can sit where the law is linear over the range
                              // (taper and stroke then have no gradient) while the full body,
                              // softer than the cell at large strain, needs the stiffening.

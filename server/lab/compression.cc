@@ -110,6 +110,7 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
     stats->rollbacks = s.counters.rollbacks;
     stats->hard_stops = s.counters.hard_stops;
     stats->step_seconds = step_time / static_cast<double>(steps);
+    stats->positions = s.x;
   }
   return out;
 }

@@ -52,6 +52,7 @@ struct CompressionStats {
   std::uint64_t rollbacks = 0;    // guard trips (should be 0)
   std::uint64_t hard_stops = 0;
   double step_seconds = 0;        // s, mean wall time of step() alone
+  std::vector<Vec3> positions;    // m, node positions at the end of the travel
 };
 
 // Moves plane 0 of `model` from the body's top (first contact) into the body at `rate` (m/s)

@@ -8,7 +8,9 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cmath>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "io/scene.h"
@@ -55,6 +57,62 @@ TEST(CalibrationFullBodyTest, VolumeStiffPhantomFollowsEcoflexToHalfItsHeight) {
   // body lost nearly all of it), and the last point carries the most.
   for (size_t k = 1; k < r.full.size(); ++k) EXPECT_GT(r.full[k], 0.97 * r.full[k - 1]) << k;
   EXPECT_EQ(*std::max_element(r.full.begin(), r.full.end()), r.full.back());
+}
+
+// Largest minus smallest outer radius (m) over the node layers of a compressed cylinder (nodes
+// grouped by rest height).
+double LayerRadiusSpread(const Model& m, const std::vector<Vec3>& x) {
+  std::map<long, double> outer;
+  for (int i = 0; i < m.num_nodes(); ++i) {
+    double& r = outer[std::lround(m.rest[i].z() * 1e6)];
+    r = std::max(r, std::hypot(x[i].x(), x[i].y()));
+  }
+  double lo = 1e9, hi = 0;
+  for (const auto& [z, r] : outer) {
+    std::printf("  layer at rest z %.1f mm: outer radius %.2f mm\n", z * 1e-3, r * 1e3);
+    lo = std::min(lo, r);
+    hi = std::max(hi, r);
+  }
+  return hi - lo;
+}
+
+TEST(CalibrationFullBodyTest, SpreadTermEvensTheLayersOfTheCompressedCylinder) {
+  // configs/phantom-cylinder.pbtxt without and with its spread term, each at the card fitted to
+  // EF30_0T with it (docs/figures/repro-fitvol-nospread-EF30_0T.card, repro-fitvol-EF30_0T.card),
+  // compressed to 50 %: the outer radius of every node layer. A homogeneous incompressible
+  // cylinder would have 25 mm / sqrt(0.5) = 35.4 mm everywhere. Third: the first card with the
+  // spread term (the evenness depends on the card; the term still narrows the alternation).
+  BodySpec spec;
+  ASSERT_EQ(io::load_scene(CONICA_SOURCE_DIR "/configs/phantom-cylinder.pbtxt", &spec), "");
+  ensure_top_plate(&spec);
+  struct Fitted {
+    ConicalCard card;
+    double bulk, spread;
+  };
+  const Fitted fits[] = {
+      {{1.42899264e10, 0.0011512408, 0.00481331295, 0.008, 0.01, 3, 1.94960363e-09}, 1198619.22, 0},
+      {{5.78040729e10, 0.000809777043, 0.00481192729, 0.008, 0.01, 3, 3.06056043e-09}, 1187190.06,
+       1187190.06},
+      {{1.42899264e10, 0.0011512408, 0.00481331295, 0.008, 0.01, 3, 1.94960363e-09}, 1198619.22,
+       1198619.22},
+  };
+  double spread_of[3];
+  for (int k = 0; k < 3; ++k) {
+    spec.groups[0].card.conical = fits[k].card;
+    spec.bulk_modulus = fits[k].bulk;
+    spec.spread_modulus = fits[k].spread;
+    Model m;
+    ASSERT_EQ(build_model(spec, &m), "");
+    CompressionStats st;
+    compression_curve(m, 500e-3 / 60, 0.5, 10, &st);
+    std::printf("%s:\n", k == 0   ? "without the spread term, its card"
+                          : k == 1 ? "with the spread term, its card"
+                                   : "with the spread term, the first card");
+    spread_of[k] = LayerRadiusSpread(m, st.positions);
+  }
+  EXPECT_GT(spread_of[0], 3e-3) << "layers alternate without the spread term";
+  EXPECT_LT(spread_of[1], 0.5e-3) << "even layers with it";
+  EXPECT_LT(spread_of[2], 0.6 * spread_of[0]) << "the term narrows the alternation at any card";
 }
 
 }  // namespace
