@@ -170,9 +170,19 @@ struct Server::Loop {
     return {};
   }
 
+  // Unbinding first releases an inproc endpoint at once; closing alone leaves it to ZeroMQ's
+  // reaper thread, so a restart in the same context could find it still taken.
   void close_all() {
-    for (zmq::socket_t* s : {&probe, &pub, &control})
-      if (s->handle() != nullptr) s->close();
+    for (zmq::socket_t* s : {&probe, &pub, &control}) {
+      if (s->handle() == nullptr) continue;
+      try {
+        const std::string e = s->get(zmq::sockopt::last_endpoint);
+        if (!e.empty()) s->unbind(e);
+      } catch (const zmq::error_t&) {
+        // not bound (a failed bind): nothing to release
+      }
+      s->close();
+    }
   }
 
   void use_model(const Model* m) {
