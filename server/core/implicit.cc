@@ -13,6 +13,8 @@
 // gather and scatter spring by spring.
 #include <algorithm>
 #include <cmath>
+#include <tuple>
+#include <type_traits>
 
 #include "core/step_detail.h"
 
@@ -187,35 +189,79 @@ double dot(int n, const double* __restrict a, const double* __restrict b) {
   return m;
 }
 
-// Calls f(nodes, n, g, c) for every element of the volume stiffness: its n node indices, its
-// dV/dx (n entries) and c = h^2 kappa / |V0| (its system block is c g g^T).
-template <typename F>
-void for_each_volume(const Model& m, const Workspace& ws, F&& f) {
-  if (!(m.bulk_modulus > 0)) return;
-  const double h = substep_of(m);
-  const Vec3* g = ws.volume_grad.data();
-  const double* coef = ws.volume_coef.data();
-  for (const auto& t : m.tetrahedra) f(t.data(), 4, g, h * h * *coef++), g += 4;
-  for (const auto& x : m.hexahedra) f(x.data(), 8, g, h * h * *coef++), g += 8;
-  if (!(m.spread_modulus > 0)) return;
-  // Gauss-point spread: eight blocks per hexahedron, c G_q G_q^T.
-  for (size_t e = 0; e < m.hexahedra.size(); ++e)
-    for (int q = 0; q < 8; ++q)
-      f(m.hexahedra[e].data(), 8, ws.spread_grad.data() + 64 * e + 8 * q, h * h * ws.spread_coef[e]);
+// The element terms of the system (volume.h) of one element on N nodes, with p and y gathered
+// per node (P[c][a]: component c of node a): the shear Laplacian lap (N x N, row-major; its block
+// between nodes a and b is lap[a][b] I), the bulk block cg g g^T and, for a hexahedron with the
+// spread term, cq sum_q G_q G_q^T (gq: 8 x 8 gradients, q-major).
+template <int N>
+void element_times(const double (&P)[3][N], const double* lap, const Vec3* g, double cg,
+                   const Vec3* gq, double cq, double (&Y)[3][N]) {
+  for (int c = 0; c < 3; ++c)
+    for (int a = 0; a < N; ++a) Y[c][a] = 0;
+  if (lap) {
+    for (int a = 0; a < N; ++a)
+      for (int b = 0; b < N; ++b) {
+        const double l = lap[N * a + b];
+        for (int c = 0; c < 3; ++c) Y[c][a] += l * P[c][b];
+      }
+  }
+  auto rank_one = [&](const Vec3* u, double k) {
+    double s = 0;
+    for (int a = 0; a < N; ++a) s += u[a].x() * P[0][a] + u[a].y() * P[1][a] + u[a].z() * P[2][a];
+    s *= k;
+    for (int a = 0; a < N; ++a)
+      for (int c = 0; c < 3; ++c) Y[c][a] += s * u[a][c];
+  };
+  if (g) rank_one(g, cg);
+  if (gq)
+    for (int q = 0; q < 8; ++q) rank_one(gq + 8 * q, cq);
 }
 
-// Calls f(nodes, n, b, c) for every tetrahedron and hexahedron Gauss point of the shear
-// stiffness: its node indices, shape-function gradients and c = h^2 |v0| mu J^(-2/3) (its system
-// block between nodes a and b is c (b_a . b_b) I).
+// Calls f(nodes, lap, g, cg, gq, cq) with the element terms (see element_times) of every element
+// (N = 4: tetrahedra, then N = 8: hexahedra); absent terms are null.
 template <typename F>
-void for_each_shear(const Model& m, const Workspace& ws, F&& f) {
+void for_each_element(const Model& m, const Workspace& ws, F&& f) {
+  const bool bulk = m.bulk_modulus > 0, spread = bulk && m.spread_modulus > 0;
+  const bool shear = m.shear_modulus > 0;
+  if (!bulk && !shear) return;
+  const double h2 = substep_of(m) * substep_of(m);
+  const Vec3* g = bulk ? ws.volume_grad.data() : nullptr;
+  const double* coef = ws.volume_coef.data();
+  const double* lap = shear ? ws.element_lap.data() : nullptr;
+  for (const auto& t : m.tetrahedra) {
+    f(t, lap, g, bulk ? h2 * *coef++ : 0.0, static_cast<const Vec3*>(nullptr), 0.0);
+    if (g) g += 4;
+    if (lap) lap += 16;
+  }
+  for (size_t e = 0; e < m.hexahedra.size(); ++e) {
+    const Vec3* gq = spread ? ws.spread_grad.data() + 64 * e : nullptr;
+    f(m.hexahedra[e], lap, g, bulk ? h2 * *coef++ : 0.0, gq, spread ? h2 * ws.spread_coef[e] : 0.0);
+    if (g) g += 8;
+    if (lap) lap += 64;
+  }
+}
+
+// The shear Laplacian of every element, h^2 sum_q c_q (b_qa . b_qb) (one q for a tetrahedron),
+// into ws.element_lap from the coefficients of the last force evaluation.
+void assemble_shear(const Model& m, Workspace& ws) {
   if (!(m.shear_modulus > 0)) return;
   const double h2 = substep_of(m) * substep_of(m);
   const Vec3* b = m.shear_b.data();
   const double* c = ws.shear_coef.data();
-  for (const auto& t : m.tetrahedra) f(t.data(), 4, b, h2 * *c++), b += 4;
-  for (const auto& x : m.hexahedra)
-    for (int q = 0; q < 8; ++q) f(x.data(), 8, b, h2 * *c++), b += 8;
+  double* lap = ws.element_lap.data();
+  auto element = [&](int n, int points) {
+    for (int k = 0; k < n * n; ++k) lap[k] = 0;
+    for (int q = 0; q < points; ++q, b += n) {
+      const double cq = h2 * *c++;
+      for (int a = 0; a < n; ++a)
+        for (int d = a; d < n; ++d) lap[n * a + d] += cq * b[a].dot(b[d]);
+    }
+    for (int a = 0; a < n; ++a)
+      for (int d = 0; d < a; ++d) lap[n * a + d] = lap[n * d + a];
+    lap += n * n;
+  };
+  for (size_t e = 0; e < m.tetrahedra.size(); ++e) element(4, 1);
+  for (size_t e = 0; e < m.hexahedra.size(); ++e) element(8, 8);
 }
 
 // y = A p on free axes (component-major).
@@ -273,34 +319,15 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
       }
     }
   }
-  for_each_volume(m, ws, [&](const int* nodes, int n, const Vec3* g, double c) {
-    double gp = 0;
-    for (int a = 0; a < n; ++a) {
-      const int i = nodes[a];
-      gp += g[a].x() * p[i] + g[a].y() * p[nn + i] + g[a].z() * p[2 * nn + i];
-    }
-    gp *= c;
-    for (int a = 0; a < n; ++a) {
-      const int i = nodes[a];
-      y[i] += gp * g[a].x();
-      y[nn + i] += gp * g[a].y();
-      y[2 * nn + i] += gp * g[a].z();
-    }
-  });
-  for_each_shear(m, ws, [&](const int* nodes, int n, const Vec3* b, double c) {
-    Mat3 t = Mat3::Zero();  // sum_b p_b b_b^T
-    for (int a = 0; a < n; ++a) {
-      const int i = nodes[a];
-      t += Vec3(p[i], p[nn + i], p[2 * nn + i]) * b[a].transpose();
-    }
-    t *= c;
-    for (int a = 0; a < n; ++a) {
-      const int i = nodes[a];
-      const Vec3 u = t * b[a];
-      y[i] += u.x();
-      y[nn + i] += u.y();
-      y[2 * nn + i] += u.z();
-    }
+  for_each_element(m, ws, [&](const auto& nodes, const double* lap, const Vec3* g, double cg,
+                               const Vec3* gq, double cq) {
+    constexpr int N = std::tuple_size_v<std::decay_t<decltype(nodes)>>;
+    double P[3][N], Y[3][N];
+    for (int a = 0; a < N; ++a)
+      for (int c = 0; c < 3; ++c) P[c][a] = p[c * nn + nodes[a]];
+    element_times(P, lap, g, cg, gq, cq, Y);
+    for (int a = 0; a < N; ++a)
+      for (int c = 0; c < 3; ++c) y[c * nn + nodes[a]] += Y[c][a];
   });
   const double* __restrict f = ws.sys_free.data();
   for (int k = 0; k < 3 * nn; ++k) y[k] *= f[k];
@@ -350,22 +377,25 @@ void build_preconditioner(const Model& m, Workspace& ws) {
       }
     }
   }
-  for_each_volume(m, ws, [&](const int* nodes, int n, const Vec3* g, double c) {
-    for (int a = 0; a < n; ++a) {
+  assemble_shear(m, ws);
+  for_each_element(m, ws, [&](const auto& nodes, const double* lap, const Vec3* g, double cg,
+                               const Vec3* gq, double cq) {
+    constexpr int N = std::tuple_size_v<std::decay_t<decltype(nodes)>>;
+    auto add = [&](int a, const Vec3& u, double c) {
       const int i = nodes[a];
-      const Vec3& u = g[a];
       d[i] += c * u.x() * u.x();
       d[nn + i] += c * u.y() * u.y();
       d[2 * nn + i] += c * u.z() * u.z();
       d[3 * nn + i] += c * u.x() * u.y();
       d[4 * nn + i] += c * u.x() * u.z();
       d[5 * nn + i] += c * u.y() * u.z();
-    }
-  });
-  for_each_shear(m, ws, [&](const int* nodes, int n, const Vec3* b, double c) {
-    for (int a = 0; a < n; ++a) {
-      const double k = c * b[a].squaredNorm();
-      for (int e = 0; e < 3; ++e) d[e * nn + nodes[a]] += k;
+    };
+    for (int a = 0; a < N; ++a) {
+      if (lap)
+        for (int c = 0; c < 3; ++c) d[c * nn + nodes[a]] += lap[(N + 1) * a];
+      if (g) add(a, g[a], cg);
+      if (gq)
+        for (int q = 0; q < 8; ++q) add(a, gq[8 * q + a], cq);
     }
   });
   invert_blocks(nn, d, ws.sys_free.data(), ws.sys_pre.data());

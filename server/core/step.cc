@@ -376,24 +376,37 @@ void volume_forces(const Model& m, const State& s, Workspace& ws) {
   }
 }
 
+// Shear stiffness forces of one element on N nodes with `points` tetrahedra / Gauss points
+// (core/volume.h), added to ws.force; advances b, v0 and coef past the element.
+template <int N>
+void shear_element(const Model& m, const State& s, const std::array<int, N>& nodes, int points,
+                   const Vec3*& b, const double*& v0, double*& coef, Workspace& ws) {
+  Vec3 x[N], f[N];
+  for (int a = 0; a < N; ++a) {
+    x[a] = s.x[nodes[a]];
+    f[a].setZero();
+  }
+  for (int q = 0; q < points; ++q, b += N) {
+    Mat3 F = Mat3::Zero();
+    for (int a = 0; a < N; ++a) F.noalias() += x[a] * b[a].transpose();
+    Mat3 P;
+    double jm;
+    isochoric_neo_hookean(F.data(), m.shear_modulus, P.data(), &jm);
+    P *= *v0;
+    for (int a = 0; a < N; ++a) f[a].noalias() -= P * b[a];
+    *coef++ = *v0++ * m.shear_modulus * jm;
+  }
+  for (int a = 0; a < N; ++a) ws.force[nodes[a]] += f[a];
+}
+
 // Shear stiffness forces (core/volume.h), added to ws.force.
 void shear_forces(const Model& m, const State& s, Workspace& ws) {
   if (!(m.shear_modulus > 0)) return;
   const Vec3* b = m.shear_b.data();
   const double* v0 = m.shear_v0.data();
   double* coef = ws.shear_coef.data();
-  auto point = [&](const int* nodes, int n) {
-    const Mat3 F = deformation_gradient(s.x, nodes, n, b);
-    Mat3 P;
-    double jm;
-    isochoric_neo_hookean(F.data(), m.shear_modulus, P.data(), &jm);
-    for (int a = 0; a < n; ++a) ws.force[nodes[a]] -= *v0 * (P * b[a]);
-    *coef++ = *v0++ * m.shear_modulus * jm;
-    b += n;
-  };
-  for (const auto& t : m.tetrahedra) point(t.data(), 4);
-  for (const auto& h : m.hexahedra)
-    for (int q = 0; q < 8; ++q) point(h.data(), 8);
+  for (const auto& t : m.tetrahedra) shear_element<4>(m, s, t, 1, b, v0, coef, ws);
+  for (const auto& h : m.hexahedra) shear_element<8>(m, s, h, 8, b, v0, coef, ws);
 }
 
 void hard_stop_project(const Model& m, State& s, Workspace& ws);
@@ -710,7 +723,10 @@ Workspace::Workspace(const Model& m) {
   for (auto* v : {&sys_rhs, &sys_r, &sys_z, &sys_p, &sys_ap, &sys_dx}) v->assign(3 * nn, 0.0);
   sys_chunk.assign(6 * kChunkSprings, 0.0);
   good_maxwell.assign(ns, 0);
-  if (m.shear_modulus > 0) shear_coef.assign(m.shear_v0.size(), 0.0);
+  if (m.shear_modulus > 0) {
+    shear_coef.assign(m.shear_v0.size(), 0.0);
+    element_lap.assign(16 * m.tetrahedra.size() + 64 * m.hexahedra.size(), 0.0);
+  }
   if (m.bulk_modulus > 0) {
     volume_grad.assign(4 * m.tetrahedra.size() + 8 * m.hexahedra.size(), Vec3::Zero());
     volume_coef.assign(m.tetrahedra.size() + m.hexahedra.size(), 0.0);

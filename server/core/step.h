@@ -176,6 +176,9 @@ struct Workspace {
   // Shear stiffness (model.shear_modulus > 0): |v0| mu J^(-2/3) per tetrahedron and Gauss point
   // at the last force evaluation (the system adds h^2 times that (b_a . b_b) I).
   std::vector<double> shear_coef;
+  // Per element (tetrahedra 16 entries, then hexahedra 64): the implicit system's shear
+  // Laplacian h^2 sum_q c_q (b_qa . b_qb), assembled once per Newton iteration.
+  std::vector<double> element_lap;
   // Last good state for rollback.
   std::vector<Vec3> good_x, good_v;
   std::vector<double> good_maxwell;

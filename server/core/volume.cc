@@ -116,9 +116,14 @@ double isochoric_neo_hookean(const double* f, double mu, double* p, double* jm) 
     *jm = 1;
     return 0;
   }
-  const double m = std::pow(J, -2.0 / 3.0), i1 = F.squaredNorm();
+  const double c = std::cbrt(J), m = 1 / (c * c), i1 = F.squaredNorm();
   *jm = m;
-  P = mu * m * (F - (i1 / 3) * F.inverse().transpose());
+  // F^-T = cofactor(F) / J.
+  Eigen::Matrix3d cof;
+  cof.col(0) = F.col(1).cross(F.col(2));
+  cof.col(1) = F.col(2).cross(F.col(0));
+  cof.col(2) = F.col(0).cross(F.col(1));
+  P = mu * m * (F - (i1 / (3 * J)) * cof);
   return 0.5 * mu * (m * i1 - 3);
 }
 
