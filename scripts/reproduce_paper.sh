@@ -79,6 +79,10 @@ for f in "$DATA/EF30_0T"/*.csv; do data+=(--data "$f"); done
 "$LAB" calibrate --scene "$tmp/phantom-nospread.pbtxt" "${data[@]}" --max-strain 0.5 \
   --out "$FIG/repro-fitvol-nospread-EF30_0T.card" \
   --curves "$FIG/repro-fitvol-nospread-EF30_0T.csv" | tail -1
+# The same with shear stiffness (a homogeneous body): the conical stiffening goes unused.
+"$LAB" calibrate --scene configs/phantom-cylinder-shear.pbtxt "${data[@]}" --max-strain 0.5 \
+  --out "$FIG/repro-fitvol-shear-EF30_0T.card" \
+  --curves "$FIG/repro-fitvol-shear-EF30_0T.csv" | tail -1
 
 # Figure 9: relaxation, creep (load-controlled plate) and hysteresis with a Maxwell branch.
 "$LAB" viscoelastic --scene configs/viscoelastic-cube.pbtxt --out "$FIG/repro-fig9" --plot

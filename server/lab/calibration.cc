@@ -891,12 +891,14 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     const int g = o.full_grid;
     double best_estimate = best_full;
     std::vector<CardShape> grid_best;
+    const int gp = pre ? std::max(1, o.full_grid_pre) : 1;
     for (int it = 0; it < g; ++it)
-      for (int is = 0; is < g; ++is) {
+      for (int is = 0; is < g; ++is)
+      for (int ip = 0; ip < gp; ++ip) {
         CardShape sh = best_shapes[0];
         sh.taper = B.taper_min + (B.taper_max - B.taper_min) * (it + 0.5) / g;
         sh.stroke = smin[0] + (B.stroke_max - smin[0]) * (is + 0.5) / g;
-        sh.precompression = 0;
+        sh.precompression = ip * L1.pre_max(0, sh.stroke) / gp;
         std::vector<CardShape> one_shape{sh};
         if (!std::isfinite(scaled_error(&one_shape))) continue;  // modulus from the surrogate
         std::vector<double> f = full(cards_of(base, one_shape));
@@ -906,6 +908,7 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
         const double e = average_relative_error(f, r.data, r.first);
         one_shape[0].modulus *= scale;
         say("full-body grid: taper " + fmt(sh.taper, 3) + ", stroke " + fmt(sh.stroke, 3) +
+            (ip ? ", pre-compression " + fmt(sh.precompression, 3) + " S" : std::string()) +
             ": average relative error " + fmt(100 * e, 4) + " % (modulus scaled)");
         if (e < best_estimate) {
           best_estimate = e;

@@ -155,6 +155,8 @@ struct FitOptions {
                              // surrogate's optimum can sit where the law is linear over the range
                              // (taper and stroke then have no gradient) while the full body,
                              // softer than the cell at large strain, needs the stiffening.
+  int full_grid_pre = 3;     // pre-compressions of that grid: 0 and, with fit_precompression,
+                             // full_grid_pre - 1 more up to its bound, evenly (1: plain law only)
   int space_mapping = 0;     // output space mapping steps after the full-body check: the
                              // surrogate times the measured full-body / surrogate force ratio
                              // (per grid point) is refitted, and the full body rerun at the new

@@ -220,6 +220,16 @@ TEST(VolumeTest, SimpleShearCarriesTheShearModulusAtAnyAngle) {
   }
 }
 
+// Implicit Euler with 1 s steps (on gram nodes: each step a static Newton solve) and a CG
+// budget that converges the system.
+void StaticImplicitSolve(SolverOptions* o) {
+  o->integrator = Integrator::kImplicitEuler;
+  o->dt = 1.0;
+  o->newton_iterations = 4;
+  o->cg_iterations = 300;
+  o->cg_tolerance = 1e-12;
+}
+
 TEST(VolumeTest, ImplicitStepHoldsAConfinedPressureAtTheBulkModulus) {
   // A cube, every face on a frictionless support except the top, pressed down by 1 % with the
   // top held: in a state of uniaxial strain the volume term's stress is kappa e (springs soft),
@@ -239,11 +249,7 @@ TEST(VolumeTest, ImplicitStepHoldsAConfinedPressureAtTheBulkModulus) {
   };
   b.fixed = {plane(Vec3::UnitX(), 0, 1), plane(Vec3::UnitX(), H, 1), plane(Vec3::UnitY(), 0, 2),
              plane(Vec3::UnitY(), H, 2), plane(Vec3::UnitZ(), 0, 4), plane(Vec3::UnitZ(), H, 4)};
-  b.options.integrator = Integrator::kImplicitEuler;
-  b.options.dt = 1.0;
-  b.options.newton_iterations = 4;
-  b.options.cg_iterations = 200;
-  b.options.cg_tolerance = 1e-12;
+  StaticImplicitSolve(&b.options);
   Model m;
   ASSERT_EQ(build_model(b, &m), "");
   State s = make_state(m);
@@ -293,4 +299,38 @@ TEST(VolumeTest, BuilderRefusesBadBulkModuliAndFlatElements) {
 }
 
 }  // namespace
+TEST(VolumeTest, ImplicitStepFindsTheEquilibriumOfAShearedBlockWithEveryElementTerm) {
+  // A block clamped at its base, its top moved sideways by 10 % of its height and held: a
+  // non-uniform state (bending near the free sides) in which the bulk, spread and shear terms all
+  // load the nodes. With 1 s steps on grams each implicit step is a static Newton solve on the
+  // system's element blocks; its interior must come to rest (zero net force on every free node).
+  const double H = 0.02, mu = 2e4, gamma = 0.1;
+  BodySpec b;
+  b.mesh = make_box_lattice(Vec3(H, H, H), {3, 3, 3});
+  b.groups.push_back({"all", SoftHooke(), kAllFamilies, {}, Vec3::Zero(), 10});
+  b.bulk_modulus = 50 * mu;
+  b.spread_modulus = 50 * mu;
+  b.shear_modulus = mu;
+  FixedSelector base, top;
+  base.normal = top.normal = Vec3::UnitZ();
+  top.offset = H;
+  b.fixed = {base, top};
+  StaticImplicitSolve(&b.options);
+  Model m;
+  ASSERT_EQ(build_model(b, &m), "");
+  State s = make_state(m);
+  for (int i = 0; i < m.num_nodes(); ++i)
+    if (m.rest[i].z() > H - 1e-9) s.x[i].x() += gamma * H;
+  Workspace ws(m);
+  compute_forces(m, s, ws);
+  double start = 0;
+  for (int i = 0; i < m.num_nodes(); ++i)
+    if (m.fixed[i] == 0) start = std::max(start, ws.force[i].norm());
+  ASSERT_GT(start, 1e-3 * mu * gamma * H * H);  // the sheared state starts far from rest
+  for (int k = 0; k < 10; ++k) step(m, s, ws);
+  compute_forces(m, s, ws);
+  for (int i = 0; i < m.num_nodes(); ++i)
+    if (m.fixed[i] == 0) EXPECT_LT(ws.force[i].norm(), 1e-8 * mu * gamma * H * H) << i;
+}
+
 }  // namespace conica

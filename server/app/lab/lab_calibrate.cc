@@ -22,7 +22,8 @@ void register_calibrate(CLI::App& app, Runner* run) {
     std::vector<std::string> data;
     std::string scene, out, curves, plot;
     double max_strain = 0.5, skip_strain = 0.03, rate_mm_per_min = 500, poisson = -1;
-    int points = 50, full_iterations = 3, cards = 1, verify = 3, space_mapping = 0, full_grid = 4;
+    int points = 50, full_iterations = 3, cards = 1, verify = 3, space_mapping = 0, full_grid = 4,
+        full_grid_pre = 3;
     bool tie_taper = false, free_moduli = false, no_precompression = false;
   };
   auto o = std::make_shared<Opts>();
@@ -56,6 +57,10 @@ void register_calibrate(CLI::App& app, Runner* run) {
   cmd->add_option("--full-grid", o->full_grid,
                   "one card: tapers x strokes of a grid compressed in the full body before its "
                   "refinement (N x N runs; 0: none)")
+      ->capture_default_str();
+  cmd->add_option("--full-grid-pre", o->full_grid_pre,
+                  "pre-compressions in that grid: 0 and N - 1 more up to its bound (N x N x M "
+                  "runs; 1: plain law only)")
       ->capture_default_str();
   cmd->add_option("--space-mapping", o->space_mapping,
                   "output space mapping steps after the full-body check (one full compression "
@@ -108,6 +113,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
       fo.verify_candidates = o->verify;
       fo.space_mapping = o->space_mapping;
       fo.full_grid = o->full_grid;
+      fo.full_grid_pre = o->full_grid_pre;
       fo.rate = o->rate_mm_per_min * 1e-3 / 60;
       fo.poisson = o->poisson;
       fo.progress = [](const std::string& s) {
