@@ -377,7 +377,6 @@ void build_preconditioner(const Model& m, Workspace& ws) {
       }
     }
   }
-  assemble_shear(m, ws);
   for_each_element(m, ws, [&](const auto& nodes, const double* lap, const Vec3* g, double cg,
                                const Vec3* gq, double cq) {
     constexpr int N = std::tuple_size_v<std::decay_t<decltype(nodes)>>;
@@ -490,6 +489,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
     for (int i = 0; i < nn; ++i)
       if (ws.contact_n[i].squaredNorm() > 0) ws.contact_nodes[ws.num_contact_nodes++] = i;
     system_coefficients(m, ws, h);
+    assemble_shear(m, ws);
     build_preconditioner(m, ws);
     s.counters.cg_iterations += solve(m, ws);
 

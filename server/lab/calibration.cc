@@ -892,29 +892,28 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     double best_estimate = best_full;
     std::vector<CardShape> grid_best;
     const int gp = pre ? std::max(1, o.full_grid_pre) : 1;
-    for (int it = 0; it < g; ++it)
-      for (int is = 0; is < g; ++is)
-      for (int ip = 0; ip < gp; ++ip) {
-        CardShape sh = best_shapes[0];
-        sh.taper = B.taper_min + (B.taper_max - B.taper_min) * (it + 0.5) / g;
-        sh.stroke = smin[0] + (B.stroke_max - smin[0]) * (is + 0.5) / g;
-        sh.precompression = ip * L1.pre_max(0, sh.stroke) / gp;
-        std::vector<CardShape> one_shape{sh};
-        if (!std::isfinite(scaled_error(&one_shape))) continue;  // modulus from the surrogate
-        std::vector<double> f = full(cards_of(base, one_shape));
-        const double scale = best_scale(f);
-        if (!(scale > 0)) continue;
-        for (double& v : f) v *= scale;
-        const double e = average_relative_error(f, r.data, r.first);
-        one_shape[0].modulus *= scale;
-        say("full-body grid: taper " + fmt(sh.taper, 3) + ", stroke " + fmt(sh.stroke, 3) +
-            (ip ? ", pre-compression " + fmt(sh.precompression, 3) + " S" : std::string()) +
-            ": average relative error " + fmt(100 * e, 4) + " % (modulus scaled)");
-        if (e < best_estimate) {
-          best_estimate = e;
-          grid_best = one_shape;
-        }
+    for (int k = 0; k < g * g * gp; ++k) {
+      const int it = k / (g * gp), is = k / gp % g, ip = k % gp;  // taper, stroke, pre
+      CardShape sh = best_shapes[0];
+      sh.taper = B.taper_min + (B.taper_max - B.taper_min) * (it + 0.5) / g;
+      sh.stroke = smin[0] + (B.stroke_max - smin[0]) * (is + 0.5) / g;
+      sh.precompression = ip * L1.pre_max(0, sh.stroke) / gp;
+      std::vector<CardShape> one_shape{sh};
+      if (!std::isfinite(scaled_error(&one_shape))) continue;  // modulus from the surrogate
+      std::vector<double> f = full(cards_of(base, one_shape));
+      const double scale = best_scale(f);
+      if (!(scale > 0)) continue;
+      for (double& v : f) v *= scale;
+      const double e = average_relative_error(f, r.data, r.first);
+      one_shape[0].modulus *= scale;
+      say("full-body grid: taper " + fmt(sh.taper, 3) + ", stroke " + fmt(sh.stroke, 3) +
+          (ip ? ", pre-compression " + fmt(sh.precompression, 3) + " S" : std::string()) +
+          ": average relative error " + fmt(100 * e, 4) + " % (modulus scaled)");
+      if (e < best_estimate) {
+        best_estimate = e;
+        grid_best = one_shape;
       }
+    }
     if (!grid_best.empty()) {
       const std::vector<double> f = full(cards_of(base, grid_best));
       const double e = average_relative_error(f, r.data, r.first);

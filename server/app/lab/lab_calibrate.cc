@@ -21,55 +21,55 @@ void register_calibrate(CLI::App& app, Runner* run) {
   struct Opts {
     std::vector<std::string> data;
     std::string scene, out, curves, plot;
-    double max_strain = 0.5, skip_strain = 0.03, rate_mm_per_min = 500, poisson = -1;
-    int points = 50, full_iterations = 3, cards = 1, verify = 3, space_mapping = 0, full_grid = 4,
-        full_grid_pre = 3;
-    bool tie_taper = false, free_moduli = false, no_precompression = false;
+    FitOptions fit;  // the options that map one to one, with the library's defaults
+    double rate_mm_per_min = 500;
+    bool free_moduli = false, no_precompression = false;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
       "calibrate", "Fit a scene's conical spring card to measured force-displacement curves");
   cmd->add_option("--scene", o->scene, "scene file (.pbtxt)")->required();
   cmd->add_option("--data", o->data, "compression test CSV (repeat for several)")->required();
-  cmd->add_option("--max-strain", o->max_strain, "fit up to this strain")->capture_default_str();
-  cmd->add_option("--skip-strain", o->skip_strain,
+  cmd->add_option("--max-strain", o->fit.max_strain, "fit up to this strain")
+      ->capture_default_str();
+  cmd->add_option("--skip-strain", o->fit.skip_strain,
                   "leave grid points below this strain out of the error (seating toe)")
       ->capture_default_str();
-  cmd->add_option("--points", o->points, "displacement grid points")->capture_default_str();
-  cmd->add_option("--full-iterations", o->full_iterations,
+  cmd->add_option("--points", o->fit.points, "displacement grid points")->capture_default_str();
+  cmd->add_option("--full-iterations", o->fit.full_iterations,
                   "Levenberg-Marquardt iterations through the full body (0: verify only, "
                   "-1: surrogate only)")
       ->capture_default_str();
-  cmd->add_option("--cards", o->cards,
+  cmd->add_option("--cards", o->fit.cards,
                   "conical cards: 1 (one for all springs), 2 (edges | diagonals), 3 (edges | face "
                   "diagonals | body diagonals)")
       ->capture_default_str();
-  cmd->add_flag("--tie-taper", o->tie_taper, "the cards share one taper");
+  cmd->add_flag("--tie-taper", o->fit.tie_taper, "the cards share one taper");
   cmd->add_flag("--free-moduli", o->free_moduli,
                 "with several cards: fit every family modulus (default: tied by the lattice's "
                 "isotropy condition 4 E_edge = E_face + 8/9 E_body)");
   cmd->add_flag("--no-precompression", o->no_precompression,
                 "keep every card's pre-compression at 0 (the plain conical law) instead of "
                 "fitting it");
-  cmd->add_option("--verify-candidates", o->verify,
+  cmd->add_option("--verify-candidates", o->fit.verify_candidates,
                   "with several cards: surrogate optima checked in the full body")
       ->capture_default_str();
-  cmd->add_option("--full-grid", o->full_grid,
+  cmd->add_option("--full-grid", o->fit.full_grid,
                   "one card: tapers x strokes of a grid compressed in the full body before its "
                   "refinement (N x N runs; 0: none)")
       ->capture_default_str();
-  cmd->add_option("--full-grid-pre", o->full_grid_pre,
+  cmd->add_option("--full-grid-pre", o->fit.full_grid_pre,
                   "pre-compressions in that grid: 0 and N - 1 more up to its bound (N x N x M "
                   "runs; 1: plain law only)")
       ->capture_default_str();
-  cmd->add_option("--space-mapping", o->space_mapping,
+  cmd->add_option("--space-mapping", o->fit.space_mapping,
                   "output space mapping steps after the full-body check (one full compression "
                   "each; 0: none)")
       ->capture_default_str();
-  cmd->add_option("--poisson", o->poisson,
-                  "small-strain Poisson ratio of the body, kept by a volume stiffness (bulk_modulus) "
-                  "that scales with the cards (default: the scene's own; a scene without "
-                  "bulk_modulus gets none)");
+  cmd->add_option("--poisson", o->fit.poisson,
+                  "small-strain Poisson ratio of the body, kept by a volume stiffness "
+                  "(bulk_modulus) that scales with the cards (default: the scene's own; a scene "
+                  "without bulk_modulus gets none)");
   cmd->add_option("--rate-mm-per-min", o->rate_mm_per_min, "plate speed of the full-body runs")
       ->capture_default_str();
   cmd->add_option("--out", o->out, "write the fitted card here (scene fragment)")->required();
@@ -101,21 +101,10 @@ void register_calibrate(CLI::App& app, Runner* run) {
         }
         curves.push_back(std::move(c));
       }
-      FitOptions fo;
-      fo.max_strain = o->max_strain;
-      fo.skip_strain = o->skip_strain;
-      fo.points = o->points;
-      fo.full_iterations = o->full_iterations;
-      fo.cards = o->cards;
-      fo.tie_taper = o->tie_taper;
+      FitOptions fo = o->fit;
       fo.isotropic = !o->free_moduli;
       fo.fit_precompression = !o->no_precompression;
-      fo.verify_candidates = o->verify;
-      fo.space_mapping = o->space_mapping;
-      fo.full_grid = o->full_grid;
-      fo.full_grid_pre = o->full_grid_pre;
       fo.rate = o->rate_mm_per_min * 1e-3 / 60;
-      fo.poisson = o->poisson;
       fo.progress = [](const std::string& s) {
         std::printf("%s\n", s.c_str());
         std::fflush(stdout);
@@ -128,7 +117,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
       char full[32] = "not run";
       if (r.full_error >= 0) std::snprintf(full, sizeof full, "%.3f %%", 100 * r.full_error);
       std::string head = "# Fitted by conica-lab calibrate to " + std::to_string(curves.size()) +
-                         " curve(s) up to strain " + std::to_string(o->max_strain) + ", " +
+                         " curve(s) up to strain " + std::to_string(o->fit.max_strain) + ", " +
                          std::to_string(r.cards.size()) + " card(s).\n";
       char line[512];
       for (size_t c = 0; c < r.cards.size(); ++c) {
@@ -148,8 +137,8 @@ void register_calibrate(CLI::App& app, Runner* run) {
                     "shear stiffness %.6g Pa, body Poisson %.4g.\n"
                     "# Average relative error (strain >= %g): surrogate %.3f %%, full body %s.\n",
                     r.moduli.c11, r.moduli.c12, r.moduli.young, r.moduli.poisson,
-                    r.moduli.anisotropy, r.bulk_modulus, r.shear_modulus, r.poisson, o->skip_strain,
-                    100 * r.surrogate_error, full);
+                    r.moduli.anisotropy, r.bulk_modulus, r.shear_modulus, r.poisson,
+                    o->fit.skip_strain, 100 * r.surrogate_error, full);
       head += line;
       if (r.floor.error >= 0) {
         std::snprintf(line, sizeof line,
