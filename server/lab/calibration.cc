@@ -5,10 +5,12 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <sstream>
+#include <thread>
 
 namespace conica::lab {
 namespace {
@@ -37,6 +39,21 @@ std::string fmt(double v, int precision = 6) {
 
 double sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
 double logit(double p) { return std::log(p / (1.0 - p)); }
+
+// Runs fn(0) .. fn(n - 1) on up to `threads` threads (0: one per hardware thread), each index
+// once; fn must not touch shared state.
+void parallel_for(int n, int threads, const std::function<void(int)>& fn) {
+  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  threads = std::min(threads, n);
+  std::atomic<int> next{0};
+  auto work = [&] {
+    for (int k = next++; k < n; k = next++) fn(k);
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+}
 
 // Unconstrained coordinates of K shapes: [ln E_c (K), logit stroke (K), logit taper (K, or 1
 // when tied), logit pre-compression (K, with pre)], the logits over the bounds. The
@@ -646,32 +663,34 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     return spec.shear_modulus > 0 ? shear_ratio * lattice_shear(lattice_moduli(groups)) : 0.0;
   };
   const bool with_volume = o.poisson >= 0 || spec.bulk_modulus > 0;
-  const double nu = o.poisson >= 0 ? o.poisson
-                                   : body_poisson(scene_moduli, spec.bulk_modulus,
-                                                  spec.shear_modulus);
-  if (with_volume && !(nu < 0.5)) {
-    r.error = "Poisson ratio must be < 0.5 (got " + fmt(nu) + ")";
+  const double scene_nu = o.poisson >= 0 ? o.poisson
+                                         : body_poisson(scene_moduli, spec.bulk_modulus,
+                                                        spec.shear_modulus);
+  if (with_volume && !(scene_nu < 0.5)) {
+    r.error = "Poisson ratio must be < 0.5 (got " + fmt(scene_nu) + ")";
     return r;
   }
-  auto bulk_for = [&](const std::vector<SpringGroupSpec>& groups) {
-    return with_volume ? bulk_for_poisson(lattice_moduli(groups), nu, shear_for(groups)) : 0.0;
+  // The body's Poisson ratio: the scene's (or the asked one) until the full-body grid picks one.
+  double nu = scene_nu;
+  auto bulk_for = [&](const std::vector<SpringGroupSpec>& groups, double ratio) {
+    return with_volume ? bulk_for_poisson(lattice_moduli(groups), ratio, shear_for(groups)) : 0.0;
   };
   const double spread_ratio = spec.bulk_modulus > 0 ? spec.spread_modulus / spec.bulk_modulus : 0.0;
   // The element terms of a body with `groups` as its springs (BodySpec fields).
   struct ElementModuli {
     double bulk, spread, shear;
   };
-  auto element_moduli = [&](const std::vector<SpringGroupSpec>& groups) {
-    const double bulk = bulk_for(groups);
+  auto element_moduli = [&](const std::vector<SpringGroupSpec>& groups, double ratio) {
+    const double bulk = bulk_for(groups, ratio);
     return ElementModuli{bulk, spread_ratio * bulk, shear_for(groups)};
   };
   if (with_volume)
     say("volume stiffness: Poisson ratio " + fmt(nu, 4) + " kept while fitting (bulk modulus at "
-        "the scene's card " + fmt(bulk_for(spec.groups), 5) + " Pa)");
+        "the scene's card " + fmt(bulk_for(spec.groups, nu), 5) + " Pa)");
   auto surrogate = [&](const std::vector<ConicalCard>& cards) {
     ++r.evaluations;
     const std::vector<SpringGroupSpec> groups = groups_for(cards);
-    const ElementModuli em = element_moduli(groups);
+    const ElementModuli em = element_moduli(groups, nu);
     return surrogate_impl(groups, spec.mapping, geo, r.grid, em.bulk, em.shear);
   };
   // Best common scale of the moduli: at fixed tapers and strokes, forces are proportional to a
@@ -836,7 +855,7 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     r.card = r.cards[0];
     r.groups = groups_for(r.cards);
     r.moduli = lattice_moduli(r.groups);
-    const ElementModuli em = element_moduli(r.groups);
+    const ElementModuli em = element_moduli(r.groups, nu);
     r.bulk_modulus = em.bulk;
     r.spread_modulus = em.spread;
     r.shear_modulus = em.shear;
@@ -851,20 +870,38 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   if (o.full_iterations < 0) return r;
 
   // 3. The full body: verify (K > 1: the best few distinct optima), then refine through it.
-  auto full = [&](const std::vector<ConicalCard>& cards) {
+  // The full body's force on the grid at Poisson ratio `ratio`, and how far it left the
+  // homogeneous state (layer spread over half width at the end of the travel). Touches nothing
+  // shared: the grid below runs it on several threads.
+  struct FullRun {
+    std::vector<double> force;
+    double spread = 0;
+  };
+  auto full_at = [&](const std::vector<ConicalCard>& cards, double ratio) {
     BodySpec s = spec;
     s.groups = groups_for(cards);
-    const ElementModuli em = element_moduli(s.groups);
+    const ElementModuli em = element_moduli(s.groups, ratio);
     s.bulk_modulus = em.bulk;
     s.spread_modulus = em.spread;
     s.shear_modulus = em.shear;
     Model m;
-    if (s.groups.empty() || !build_model(s, &m).empty()) return std::vector<double>(n, std::nan(""));
+    FullRun run{std::vector<double>(n, std::nan("")), 0};
+    if (s.groups.empty() || !build_model(s, &m).empty()) return run;
+    CompressionStats st;
+    const Curve c = compression_curve(m, o.rate, o.max_strain, n, &st);
+    for (int k = 0; k < n; ++k) run.force[k] = c[k + 1].force;
+    run.spread = st.half_width > 0 ? st.layer_spread / st.half_width : 0;
+    return run;
+  };
+  // A body that left the homogeneous state (options.max_layer_spread) gives no curve (NaN): the
+  // fit must not owe its shape to a buckle.
+  auto accepted = [&](FullRun run) {
+    if (run.spread > o.max_layer_spread) std::fill(run.force.begin(), run.force.end(), std::nan(""));
+    return run.force;
+  };
+  auto full = [&](const std::vector<ConicalCard>& cards) {
     ++r.full_evaluations;
-    const Curve c = compression_curve(m, o.rate, o.max_strain, n);
-    std::vector<double> f(n);
-    for (int k = 0; k < n; ++k) f[k] = c[k + 1].force;
-    return f;
+    return accepted(full_at(cards, nu));
   };
   double best_full = std::numeric_limits<double>::infinity();
   std::vector<CardShape> best_shapes = found.front().shapes;
@@ -884,48 +921,84 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
       best_curve = f;
     }
   }
-  // Full-body grid (one card): forces scale with the modulus at fixed shape (the volume stiffness
-  // and the plate's penalty scale with it), so each shape takes the best modulus in closed form;
-  // the best is compressed again at that modulus.
+  // Full-body grid (one card): forces scale with the modulus at fixed shape and Poisson ratio
+  // (the volume stiffness and the plate's penalty scale with it), so each shape takes the best
+  // modulus in closed form; the best is compressed again at that modulus. With volume stiffness
+  // and the scene's Poisson ratio (no `poisson` asked) the grid also spans Poisson ratios from
+  // poisson_min up to the scene's. The runs are independent and share out over threads.
   if (K == 1 && o.full_grid > 0) {
     const int g = o.full_grid;
-    double best_estimate = best_full;
-    std::vector<CardShape> grid_best;
     const int gp = pre ? std::max(1, o.full_grid_pre) : 1;
-    for (int k = 0; k < g * g * gp; ++k) {
-      const int it = k / (g * gp), is = k / gp % g, ip = k % gp;  // taper, stroke, pre
+    const int gn = with_volume && o.poisson < 0 && o.poisson_min < scene_nu
+                       ? std::max(1, o.full_grid_poisson)
+                       : 1;
+    struct GridPoint {
+      CardShape shape;
+      double nu = 0;
+      FullRun run;
+    };
+    std::vector<GridPoint> points;
+    for (int k = 0; k < g * g * gp * gn; ++k) {
+      // Poisson ratio outermost (the scene's first), then taper, stroke, pre-compression.
+      const int in = k / (g * g * gp), it = k / (g * gp) % g, is = k / gp % g, ip = k % gp;
       CardShape sh = best_shapes[0];
       sh.taper = B.taper_min + (B.taper_max - B.taper_min) * (it + 0.5) / g;
       sh.stroke = smin[0] + (B.stroke_max - smin[0]) * (is + 0.5) / g;
       sh.precompression = ip * L1.pre_max(0, sh.stroke) / gp;
       std::vector<CardShape> one_shape{sh};
       if (!std::isfinite(scaled_error(&one_shape))) continue;  // modulus from the surrogate
-      std::vector<double> f = full(cards_of(base, one_shape));
+      const double ratio = gn == 1 ? scene_nu
+                                   : scene_nu - (scene_nu - o.poisson_min) * in / (gn - 1);
+      points.push_back({one_shape[0], ratio, {}});
+    }
+    parallel_for(static_cast<int>(points.size()), o.threads, [&](int k) {
+      points[k].run = full_at(cards_of(base, {points[k].shape}), points[k].nu);
+    });
+    r.full_evaluations += static_cast<int>(points.size());
+    double best_estimate = best_full;
+    const GridPoint* grid_best = nullptr;
+    for (GridPoint& p : points) {
+      std::vector<double>& f = p.run.force;
       const double scale = best_scale(f);
       if (!(scale > 0)) continue;
       for (double& v : f) v *= scale;
       const double e = average_relative_error(f, r.data, r.first);
-      one_shape[0].modulus *= scale;
-      say("full-body grid: taper " + fmt(sh.taper, 3) + ", stroke " + fmt(sh.stroke, 3) +
-          (ip ? ", pre-compression " + fmt(sh.precompression, 3) + " S" : std::string()) +
-          ": average relative error " + fmt(100 * e, 4) + " % (modulus scaled)");
-      if (e < best_estimate) {
+      const bool even = p.run.spread <= o.max_layer_spread;
+      p.shape.modulus *= scale;
+      say("full-body grid: " + (gn > 1 ? "Poisson " + fmt(p.nu, 3) + ", " : std::string()) +
+          "taper " + fmt(p.shape.taper, 3) + ", stroke " + fmt(p.shape.stroke, 3) +
+          (p.shape.precompression > 0
+               ? ", pre-compression " + fmt(p.shape.precompression, 3) + " S"
+               : std::string()) +
+          ": average relative error " + fmt(100 * e, 4) + " % (modulus scaled)" +
+          (even ? std::string()
+                : ", rejected: left the homogeneous state (layer spread " +
+                      fmt(100 * p.run.spread, 3) + " % of the half width)"));
+      if (even && e < best_estimate) {
         best_estimate = e;
-        grid_best = one_shape;
+        grid_best = &p;
       }
     }
-    if (!grid_best.empty()) {
-      const std::vector<double> f = full(cards_of(base, grid_best));
+    if (grid_best) {
+      const double nu_before = nu;
+      nu = grid_best->nu;
+      const std::vector<double> f = full(cards_of(base, {grid_best->shape}));
       const double e = average_relative_error(f, r.data, r.first);
-      say("full-body grid best: " + shapes_text(grid_best) + ", average relative error " +
+      say("full-body grid best: " + shapes_text({grid_best->shape}) +
+          (gn > 1 ? ", Poisson " + fmt(nu, 3) : std::string()) + ", average relative error " +
           fmt(100 * e, 4) + " %");
       if (e < best_full) {
         best_full = e;
-        best_shapes = grid_best;
+        best_shapes = {grid_best->shape};
         best_curve = f;
+      } else {
+        nu = nu_before;
       }
     }
   }
+  if (!std::isfinite(best_full))
+    say("no full-body run kept its homogeneous state (layer spread above max_layer_spread) or "
+        "finished: the full-body error is not defined for this scene and card family");
   set_result(best_shapes);
   r.surrogate_error_before_refine = r.surrogate_error;
   r.full_error_before_refine = best_full;

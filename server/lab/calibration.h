@@ -167,10 +167,25 @@ struct FitOptions {
                              // with pre-compressed laws
   bool fit_precompression = true;  // fit each card's pre-compression p = delta0 / S too (a
                                    // fourth number per card); false: p = 0, the plain law
+  int full_grid_poisson = 3; // Poisson ratios of that grid, evenly from poisson_min to the
+                             // scene's own (1: the scene's only). Only with volume stiffness and
+                             // no `poisson` given: a force curve fixes the body's Poisson ratio
+                             // only through the geometric stiffening it brings (an
+                             // incompressible body stiffens in compression by itself), which
+                             // trades off with the coils' stiffening, so it is searched with the
+                             // shape and the best is kept (the fitted body's ratio is reported).
+  double poisson_min = 0.41; // lowest Poisson ratio of that grid
+  double max_layer_spread = 0.02;  // a full-body run whose node layers spread by more than
+                                   // this fraction of the half width at the end of the travel
+                                   // (lab/compression.h layer_spread: it leaned, buckled or its
+                                   // layers alternate) has left the homogeneous state, and its
+                                   // curve is not used (the fit would owe its shape to it)
+  int threads = 0;           // full-body grid runs in parallel (0: one per hardware thread)
   double rate = 500e-3 / 60; // m/s, plate speed of the full-body compression
   double poisson = -1;       // the body's small-strain Poisson ratio kept while the cards change,
                              // by the volume stiffness (bulk_for_poisson); < 0: the scene's own
-                             // (its cards, bulk_modulus and shear_modulus), and with no
+                             // (its cards, bulk_modulus and shear_modulus) and, through the full
+                             // body, the best of full_grid_poisson ratios up to it; with no
                              // bulk_modulus in the scene none is added. A scene's shear_modulus
                              // keeps its ratio to the lattice's shear modulus.
   ShapeBounds bounds;

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
 
 #include "core/step.h"
 
@@ -69,6 +70,38 @@ double rigid_plate_stiffness(const Model& m, bool with_maxwell) {
 
 double cross_section(const Model& model) { return body_volume(model) / plate_height(model); }
 
+namespace {
+// Rest centroid and the projector onto the plane normal to plane 0 (its axis through it).
+struct Axis {
+  Vec3 centroid = Vec3::Zero();
+  Mat3 lateral = Mat3::Identity();
+};
+Axis body_axis(const Model& model) {
+  Axis a;
+  for (int i = 0; i < model.num_nodes(); ++i) a.centroid += model.rest[i];
+  a.centroid /= std::max(1, model.num_nodes());
+  const Vec3 n = model.planes.at(0).normal;
+  a.lateral -= n * n.transpose();
+  return a;
+}
+}  // namespace
+
+double layer_spread(const Model& model, const std::vector<Vec3>& x) {
+  const Axis a = body_axis(model);
+  const Vec3 n = model.planes.at(0).normal;
+  std::map<long, double> outer;  // rest height (um) -> largest distance from the axis
+  for (int i = 0; i < model.num_nodes(); ++i) {
+    double& r = outer[std::lround(n.dot(model.rest[i]) * 1e6)];
+    r = std::max(r, (a.lateral * (x[i] - a.centroid)).norm());
+  }
+  double lo = std::numeric_limits<double>::infinity(), hi = 0;
+  for (const auto& [h, r] : outer) {
+    lo = std::min(lo, r);
+    hi = std::max(hi, r);
+  }
+  return outer.empty() ? 0.0 : hi - lo;
+}
+
 Curve compression_curve(const Model& model, double rate, double to_strain, int samples,
                         CompressionStats* stats) {
   Model m = model;
@@ -111,6 +144,11 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
     stats->hard_stops = s.counters.hard_stops;
     stats->step_seconds = step_time / static_cast<double>(steps);
     stats->positions = s.x;
+    stats->layer_spread = layer_spread(m, s.x);
+    const Axis a = body_axis(m);
+    stats->half_width = 0;
+    for (const Vec3& r : m.rest)
+      stats->half_width = std::max(stats->half_width, (a.lateral * (r - a.centroid)).norm());
   }
   return out;
 }

@@ -53,7 +53,16 @@ struct CompressionStats {
   std::uint64_t hard_stops = 0;
   double step_seconds = 0;        // s, mean wall time of step() alone
   std::vector<Vec3> positions;    // m, node positions at the end of the travel
+  double layer_spread = 0;        // m, layer_spread() at the end of the travel
+  double half_width = 0;          // m, the rest body's largest distance from its axis
 };
+
+// How far a compressed prism has left the homogeneous state: nodes grouped into layers by rest
+// height along plane 0's normal (to 1 um), each layer's largest distance from the axis (the
+// normal through the rest centroid) at positions `x`; returns the largest minus the smallest
+// (m). Between frictionless plates a homogeneous body's layers all spread alike (0); a body
+// that leans, buckles or whose layers alternately bulge and narrow does not.
+double layer_spread(const Model& model, const std::vector<Vec3>& x);
 
 // Moves plane 0 of `model` from the body's top (first contact) into the body at `rate` (m/s)
 // until the plate has travelled to_strain * plate_height, stepping with the model's integrator

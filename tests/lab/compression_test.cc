@@ -188,5 +188,39 @@ TEST(CompressionTest, AddsATopPlateOnlyWhenNone) {
   EXPECT_FALSE(ensure_top_plate(&s));
 }
 
+// layer_spread on a 2 x 2 x 4 cm box lattice (half width: the corner, sqrt(2) cm from the axis):
+// 0 under any homogeneous compression with lateral expansion; a lean (each layer shifted along
+// x in proportion to its height, top by s) moves the top layer's far corner to
+// sqrt((a + s)^2 + a^2) while the base keeps sqrt(2) a; layers alternately wider and narrower
+// (every other one scaled by 1.1) spread by 0.1 sqrt(2) a x its lateral stretch.
+TEST(CompressionTest, LayerSpreadMeasuresTheDepartureFromTheHomogeneousState) {
+  const double a = 0.01, H = 0.04;
+  BodySpec spec = CubeSpec(Hooke(100, 0.01), 2, a * 2);
+  spec.mesh = make_box_lattice(Vec3(2 * a, 2 * a, H), {2, 2, 4});
+  spec.fixed.resize(1);
+  spec.planes.clear();
+  ASSERT_TRUE(ensure_top_plate(&spec));
+  Model m;
+  ASSERT_EQ(build_model(spec, &m), "");
+  const Vec3 c(a, a, 0);  // the axis: through the rest centroid
+  auto map = [&](auto f) {
+    std::vector<Vec3> x(m.num_nodes());
+    for (int i = 0; i < m.num_nodes(); ++i) x[i] = f(m.rest[i]);
+    return x;
+  };
+  const double lat = 1.3, ax = 0.5;
+  EXPECT_NEAR(layer_spread(m, map([&](const Vec3& r) {
+                return Vec3(c.x() + lat * (r.x() - c.x()), c.y() + lat * (r.y() - c.y()), ax * r.z());
+              })), 0, 1e-15);
+  const double shift = 2e-3;
+  EXPECT_NEAR(layer_spread(m, map([&](const Vec3& r) {
+                return Vec3(r.x() + shift * r.z() / H, r.y(), ax * r.z());
+              })), std::hypot(a + shift, a) - std::sqrt(2.0) * a, 1e-12);
+  EXPECT_NEAR(layer_spread(m, map([&](const Vec3& r) {
+                const double g = lat * (std::lround(r.z() / 0.01) % 2 ? 1.1 : 1.0);
+                return Vec3(c.x() + g * (r.x() - c.x()), c.y() + g * (r.y() - c.y()), ax * r.z());
+              })), 0.1 * lat * std::sqrt(2.0) * a, 1e-12);
+}
+
 }  // namespace
 }  // namespace conica::lab

@@ -62,14 +62,28 @@ void register_calibrate(CLI::App& app, Runner* run) {
                   "pre-compressions in that grid: 0 and N - 1 more up to its bound (N x N x M "
                   "runs; 1: plain law only)")
       ->capture_default_str();
+  cmd->add_option("--full-grid-poisson", o->fit.full_grid_poisson,
+                  "Poisson ratios in that grid, from --poisson-min up to the scene's own (N x N x "
+                  "M x P runs; 1: the scene's only; not with --poisson)")
+      ->capture_default_str();
+  cmd->add_option("--poisson-min", o->fit.poisson_min, "lowest Poisson ratio of that grid")
+      ->capture_default_str();
+  cmd->add_option("--max-layer-spread", o->fit.max_layer_spread,
+                  "full-body runs whose node layers spread by more than this fraction of the "
+                  "half width at the end (leaned, buckled) are not used")
+      ->capture_default_str();
+  cmd->add_option("--threads", o->fit.threads,
+                  "full-body grid runs in parallel (0: one per hardware thread)")
+      ->capture_default_str();
   cmd->add_option("--space-mapping", o->fit.space_mapping,
                   "output space mapping steps after the full-body check (one full compression "
                   "each; 0: none)")
       ->capture_default_str();
   cmd->add_option("--poisson", o->fit.poisson,
                   "small-strain Poisson ratio of the body, kept by a volume stiffness "
-                  "(bulk_modulus) that scales with the cards (default: the scene's own; a scene "
-                  "without bulk_modulus gets none)");
+                  "(bulk_modulus) that scales with the cards (default: the scene's own and, through "
+                  "the full-body grid, lower ones down to --poisson-min; a scene without "
+                  "bulk_modulus gets none)");
   cmd->add_option("--rate-mm-per-min", o->rate_mm_per_min, "plate speed of the full-body runs")
       ->capture_default_str();
   cmd->add_option("--out", o->out, "write the fitted card here (scene fragment)")->required();
