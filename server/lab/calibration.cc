@@ -895,8 +895,9 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   };
   // A body that left the homogeneous state (options.max_layer_spread) gives no curve (NaN): the
   // fit must not owe its shape to a buckle.
+  auto even = [&](const FullRun& run) { return run.spread <= o.max_layer_spread; };
   auto accepted = [&](FullRun run) {
-    if (run.spread > o.max_layer_spread) std::fill(run.force.begin(), run.force.end(), std::nan(""));
+    if (!even(run)) std::fill(run.force.begin(), run.force.end(), std::nan(""));
     return run.force;
   };
   auto full = [&](const std::vector<ConicalCard>& cards) {
@@ -963,7 +964,7 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
       if (!(scale > 0)) continue;
       for (double& v : f) v *= scale;
       const double e = average_relative_error(f, r.data, r.first);
-      const bool even = p.run.spread <= o.max_layer_spread;
+      const bool kept = even(p.run);
       p.shape.modulus *= scale;
       say("full-body grid: " + (gn > 1 ? "Poisson " + fmt(p.nu, 3) + ", " : std::string()) +
           "taper " + fmt(p.shape.taper, 3) + ", stroke " + fmt(p.shape.stroke, 3) +
@@ -971,10 +972,10 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
                ? ", pre-compression " + fmt(p.shape.precompression, 3) + " S"
                : std::string()) +
           ": average relative error " + fmt(100 * e, 4) + " % (modulus scaled)" +
-          (even ? std::string()
+          (kept ? std::string()
                 : ", rejected: left the homogeneous state (layer spread " +
                       fmt(100 * p.run.spread, 3) + " % of the half width)"));
-      if (even && e < best_estimate) {
+      if (kept && e < best_estimate) {
         best_estimate = e;
         grid_best = &p;
       }
