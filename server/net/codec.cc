@@ -46,19 +46,6 @@ const char* error_kind_name(ErrorKind kind) {
   return "?";
 }
 
-void body_box(const Model& model, double margin, ProbeLimits* limits) {
-  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-  Vec3 hi = -lo;
-  for (const Vec3& x : model.rest) {
-    lo = lo.cwiseMin(x);
-    hi = hi.cwiseMax(x);
-  }
-  if (model.rest.empty()) lo = hi = Vec3::Zero();
-  limits->box_min = lo - Vec3::Constant(margin);
-  limits->box_max = hi + Vec3::Constant(margin);
-  limits->num_probes = static_cast<int>(model.probes.size());
-}
-
 bool parse_client(const void* data, std::size_t size, std::size_t max_bytes, v1::ClientMessage* msg,
                   DecodeError* err) {
   if (size > max_bytes) return fail(err, ErrorKind::kTooLarge, "message larger than the limit");
@@ -71,8 +58,7 @@ bool parse_client(const void* data, std::size_t size, std::size_t max_bytes, v1:
   return true;
 }
 
-bool decode_probe(const v1::ClientMessage& msg, const ProbeLimits& lim, ProbeInput* out,
-                  DecodeError* err) {
+bool decode_probe_update(const v1::ClientMessage& msg, ProbeInput* out, DecodeError* err) {
   if (msg.body_case() != v1::ClientMessage::kProbe)
     return fail(err, ErrorKind::kWrongType, "the probe socket takes ClientMessage{probe} only");
   const v1::ProbeUpdate& p = msg.probe();
@@ -81,28 +67,22 @@ bool decode_probe(const v1::ClientMessage& msg, const ProbeLimits& lim, ProbeInp
   // fields; a probe update always carries a position.
   if (!p.has_position())
     return fail(err, ErrorKind::kBadRequest, "probe update without position", seq);
-  if (p.probe_id() >= static_cast<std::uint32_t>(lim.num_probes))
-    return fail(err, ErrorKind::kUnknownProbe, "no probe with this probe_id in the scene", seq);
-  const v1::Vec3& x = p.position();
-  if (!finite(x)) return fail(err, ErrorKind::kBadValue, "probe position is NaN or Inf", seq);
-  const Vec3 c(x.x(), x.y(), x.z());
-  if (c.cwiseAbs().maxCoeff() > lim.max_abs_position)
-    return fail(err, ErrorKind::kBadValue, "probe position is absurdly far (> 1e3 m)", seq);
-  if ((c.array() < lim.box_min.array()).any() || (c.array() > lim.box_max.array()).any())
-    return fail(err, ErrorKind::kBadValue, "probe position outside the box around the body", seq);
   if (p.has_velocity() && !finite(p.velocity()))
     return fail(err, ErrorKind::kBadValue, "probe velocity is NaN or Inf", seq);
-  const double r = p.radius();
-  if (!std::isfinite(r) || r < 0 || r > lim.max_radius)
-    return fail(err, ErrorKind::kBadValue, "probe radius must be in (0, 1] m (0 keeps the scene's)",
-                seq);
+  const v1::Vec3& x = p.position();
   out->client_id = p.client_id();
-  out->probe_id = static_cast<int>(p.probe_id());
+  // Ids beyond int range stay out of range (check_probe refuses them).
+  out->probe_id = static_cast<int>(std::min<std::uint32_t>(p.probe_id(), 0x7fffffff));
   out->sequence = seq;
   out->send_time_ns = p.send_time_ns();
-  out->position = c;
-  out->radius = r;
+  out->position = Vec3(x.x(), x.y(), x.z());
+  out->radius = p.radius();
   return true;
+}
+
+bool decode_probe(const v1::ClientMessage& msg, const ProbeLimits& lim, ProbeInput* out,
+                  DecodeError* err) {
+  return decode_probe_update(msg, out, err) && loop::check_probe(*out, lim, err);
 }
 
 bool decode_control(const v1::ClientMessage& msg, const v1::ControlRequest** out,
@@ -115,6 +95,33 @@ bool decode_control(const v1::ClientMessage& msg, const v1::ControlRequest** out
     return fail(err, ErrorKind::kBadRequest, "unknown control kind", c.sequence());
   *out = &c;
   return true;
+}
+
+void to_command(const v1::ControlRequest& req, loop::ControlRequest* out) {
+  using K = v1::ControlRequest;
+  out->sequence = req.sequence();
+  switch (req.kind()) {
+    case K::LOAD_SCENE:
+      out->command = loop::LoadScene{req.text()};
+      return;
+    case K::RESET:
+      out->command = loop::Reset{};
+      return;
+    case K::PAUSE:
+      out->command = loop::Pause{};
+      return;
+    case K::RESUME:
+      out->command = loop::Resume{};
+      return;
+    case K::SET_PARAMETER:
+      out->command = loop::SetParameter{loop::parameter_from_name(req.name()), req.value()};
+      return;
+    case K::GET_MESH:
+      out->command = loop::GetMesh{};
+      return;
+    default:  // GET_STATS (decode_control refuses unknown kinds)
+      out->command = loop::GetStats{};
+  }
 }
 
 void encode_stats(const LoopStatsData& s, const Counters& c, v1::LoopStats* out) {
@@ -218,6 +225,18 @@ void encode_mesh(const Model& model, v1::ControlReply* out) {
   rest->Reserve(3 * model.num_nodes());
   for (const Vec3& x : model.rest)
     for (int a = 0; a < 3; ++a) rest->Add(static_cast<float>(x[a]));
+}
+
+void encode_control_result(const loop::ControlResult& r, v1::ServerMessage* out) {
+  out->set_protocol_version(kProtocolVersion);
+  v1::ControlReply* reply = out->mutable_control_reply();
+  reply->Clear();  // the control path may allocate
+  reply->set_sequence(r.sequence);
+  reply->set_ok(r.ok);
+  reply->set_message(r.message);
+  if (r.mesh) encode_mesh(*r.mesh, reply);
+  encode_stats(r.stats, r.counters, reply->mutable_stats());
+  reply->set_num_nodes(r.num_nodes);
 }
 
 }  // namespace conica::net

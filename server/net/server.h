@@ -7,11 +7,13 @@
 //                   [topic "S"][ServerMessage{state}] with node positions at positions_hz
 //   control ROUTER  ClientMessage{control} -> ServerMessage{control_reply | error}
 //
-// One tick: wait (ppoll on the probe and control sockets' ZMQ_FD until the absolute deadline,
-// answering probes as they come) -> input (drain what is left) -> step -> publish. Deadlines are
-// absolute (CLOCK_MONOTONIC); an overrun skips the missed deadlines and counts them, dt stays
-// fixed. Bad messages are answered with ServerMessage{error}, counted by kind and logged once per
-// kind per 10 s; they never change the rate or the state.
+// The fixed-rate loop itself is loop::FixedRateLoop (server/loop, no wire): one tick is serve
+// (answer probes and apply control as they arrive, until the absolute deadline) -> swap in a
+// scene LOAD_SCENE prepared on a worker thread -> input -> step -> publish; an overrun skips the
+// missed deadlines and counts them, dt stays fixed. The Server puts it on a thread with the real
+// clock (CLOCK_MONOTONIC) and net::ZmqTransport (the sockets and the codec), and logs: bad
+// messages are answered with ServerMessage{error}, counted by kind and logged once per kind per
+// 10 s; they never change the rate or the state.
 //
 // The Server owns its sockets; the zmq::context_t is the caller's (inproc endpoints need the
 // client to share it). start() binds and starts the loop thread; stop() joins it and closes the
@@ -31,6 +33,11 @@
 #include "core/body.h"
 #include "core/model.h"
 #include "net/codec.h"
+
+namespace conica::loop {
+class FixedRateLoop;
+class SteadyClock;
+}  // namespace conica::loop
 
 namespace conica::net {
 
@@ -81,7 +88,8 @@ class Server {
   Server& operator=(const Server&) = delete;
 
   // Builds the model, measures the step cost on a copy (50 steps) and makes it the scene. Before
-  // start() only; LOAD_SCENE does the same while running. Returns an error message or "".
+  // start() only; LOAD_SCENE does the same on a worker thread while running and the loop swaps
+  // the scene in at a tick boundary. Returns an error message or "".
   std::string load(const BodySpec& spec);
 
   // Binds the sockets and starts the loop thread. Returns an error message or "".
@@ -93,30 +101,28 @@ class Server {
   Endpoints endpoints() const;
   // The latest statistics snapshot (refreshed a few times per second by the loop).
   LoopStatsData stats() const;
-  // Median and maximum step cost measured at the last load, us.
-  double measured_step_us() const { return measured_step_us_; }
+  // Median step cost measured at the last load, us (0 before one).
+  double measured_step_us() const;
   // CURVE handshakes refused and accepted since start() (0 without CURVE).
   std::uint64_t curve_refused() const;
   std::uint64_t curve_accepted() const;
   // The current model (valid until the next load; do not call while LOAD_SCENE may run).
   const Model& model() const;
 
-  struct Loop;  // the loop thread's state (sockets, messages, scratch)
-
  private:
-  std::string prepare(const BodySpec& spec, std::unique_ptr<Model>* model, double* step_us) const;
+  class Events;  // the loop's Observer: statistics snapshot and logging
 
   zmq::context_t& context_;
   ServerOptions options_;
-  std::unique_ptr<Model> model_;
-  double measured_step_us_ = 0;
+  std::unique_ptr<loop::SteadyClock> clock_;
+  std::unique_ptr<Events> events_;
+  std::unique_ptr<loop::FixedRateLoop> loop_;  // the scene, commands, ticks; kept across runs
   std::unique_ptr<ZapHandler> zap_;  // CURVE only; bound before the sockets, closed after them
   std::thread thread_;
   std::atomic<bool> stop_{false};
   mutable std::mutex mutex_;  // guards endpoints_ and stats_
   Endpoints endpoints_;
   LoopStatsData stats_;
-  friend struct Loop;
 };
 
 }  // namespace conica::net

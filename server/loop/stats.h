@@ -7,11 +7,12 @@
 #include <cstddef>
 #include <vector>
 
-namespace conica::net {
+namespace conica::loop {
 
 class RollingWindow {
  public:
-  explicit RollingWindow(std::size_t capacity) : ring_(capacity, 0.0), scratch_(capacity, 0.0) {}
+  explicit RollingWindow(std::size_t capacity)
+      : ring_(std::max<std::size_t>(capacity, 1), 0.0), scratch_(ring_.size(), 0.0) {}
 
   void add(double sample) {
     ring_[head_] = sample;
@@ -46,4 +47,4 @@ class RollingWindow {
   std::size_t head_ = 0, count_ = 0;
 };
 
-}  // namespace conica::net
+}  // namespace conica::loop

@@ -1,0 +1,119 @@
+#include "loop/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+
+#include "loop/clock.h"
+
+namespace conica::loop {
+namespace {
+
+std::string format(const char* fmt, ...) {
+  char buf[512];
+  va_list args;
+  va_start(args, fmt);
+  std::vsnprintf(buf, sizeof(buf), fmt, args);
+  va_end(args);
+  return buf;
+}
+
+}  // namespace
+
+std::string prepare_scene(const BodySpec& spec, const PrepareOptions& opt, Scene* scene) {
+  scene->notes.clear();
+  auto note = [&](bool warning, std::string text) {
+    scene->notes.push_back({warning, std::move(text)});
+  };
+  auto m = std::make_unique<Model>();
+  if (std::string e = build_model(spec, m.get()); !e.empty()) return e;
+  const double period_s = 1.0 / opt.rate_hz;
+  if (std::abs(m->options.dt - period_s) > 1e-9 * period_s)
+    note(true, format("scene dt %g s differs from the loop period %g s: simulated time runs at "
+                      "%.2fx",
+                      m->options.dt, period_s, m->options.dt / period_s));
+  if (m->probes.empty()) note(true, "scene has no probe: every probe update will be refused");
+
+  // Step cost on a copy of the rest state.
+  const int n = std::max(1, opt.benchmark_steps);
+  {
+    SteadyClock clock;
+    State s = make_state(*m);
+    Workspace ws(*m);
+    std::vector<double> cost(n);
+    for (int k = 0; k < n; ++k) {
+      const TimeNs t0 = clock.now_ns();
+      step(*m, s, ws);
+      cost[k] = static_cast<double>(clock.now_ns() - t0) * 1e-3;
+    }
+    std::nth_element(cost.begin(), cost.begin() + n / 2, cost.end());
+    scene->step_us = cost[n / 2];
+    if (m->options.active_region) {
+      if (m->options.integrator == Integrator::kImplicitEuler)
+        note(true, "active region ignored: the implicit integrator steps every node");
+      else if (ws.far_every > 0)
+        note(false, format("active region: tolerance %g m; far field one step every %d ticks "
+                           "(measured stability bound %d, far inertia x %.3f); the step below is "
+                           "measured at rest",
+                           m->options.active_tolerance, ws.far_every, ws.measured_every,
+                           ws.far_raise));
+      else
+        note(false, format("active region: tolerance %g m; far field frozen",
+                           m->options.active_tolerance));
+    }
+  }
+  const double median = scene->step_us, period_us = 1e6 * period_s;
+  if (median > period_us && opt.refuse_slow_scene)
+    return format("the step costs %.0f us (median of %d), more than the %.0f us period at %g Hz: "
+                  "lower the rate or simplify the scene",
+                  median, n, period_us, opt.rate_hz);
+  if (median > 0.5 * period_us)
+    note(true, format("the step costs %.0f us of the %.0f us period: ticks may be missed", median,
+                      period_us));
+  body_box(*m, opt.box_margin, &scene->limits);
+  scene->model = std::move(m);
+  reset_scene(scene);
+  return {};
+}
+
+void reset_scene(Scene* scene) {
+  scene->state = make_state(*scene->model);
+  scene->workspace = std::make_unique<Workspace>(*scene->model);
+}
+
+void ScenePreparer::start(std::string source, SceneLoader loader, PrepareOptions options,
+                          std::unique_ptr<Scene> retired) {
+  wait();
+  done_.store(false, std::memory_order_relaxed);
+  result_ = Result{};
+  result_.source = std::move(source);
+  worker_ = std::thread([this, loader = std::move(loader), options,
+                         retired = std::move(retired)]() mutable {
+    retired.reset();
+    BodySpec spec;
+    std::string e = loader ? loader(result_.source, &spec) : "no scene loader";
+    if (e.empty()) {
+      auto scene = std::make_unique<Scene>();
+      e = prepare_scene(spec, options, scene.get());
+      result_.notes = std::move(scene->notes);
+      if (e.empty()) result_.scene = std::move(scene);
+    }
+    result_.error = std::move(e);
+    done_.store(true, std::memory_order_release);
+  });
+}
+
+ScenePreparer::Result ScenePreparer::take() {
+  if (worker_.joinable()) worker_.join();
+  done_.store(false, std::memory_order_relaxed);
+  return std::move(result_);
+}
+
+void ScenePreparer::wait() {
+  if (worker_.joinable()) worker_.join();
+  done_.store(false, std::memory_order_relaxed);
+  result_ = Result{};
+}
+
+}  // namespace conica::loop

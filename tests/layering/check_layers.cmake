@@ -1,0 +1,58 @@
+# Layering check, run by CTest (`cmake -DSOURCE_DIR=<repo> [-DLINK_FILE=<file>] -P this`):
+#   server/core  includes no io/, net/, loop/, lab/ or app/ header, nor ZeroMQ, protobuf, spdlog
+#   server/loop  includes no io/, net/, lab/ or app/ header, nor ZeroMQ, protobuf, spdlog, fmt;
+#                and (LINK_FILE, written at configure time) conica_loop links none of those
+# Fails naming file:line and the offending include.
+if(NOT SOURCE_DIR)
+  message(FATAL_ERROR "usage: cmake -DSOURCE_DIR=<repository> -P check_layers.cmake")
+endif()
+
+set(wire_headers "zmq\\.h|zmq\\.hpp|zmq_addon\\.hpp|\\.pb\\.h$|^google/protobuf/|^spdlog/|^fmt/")
+set(core_forbidden "^(io|net|loop|lab|app)/|${wire_headers}")
+set(loop_forbidden "^(io|net|lab|app)/|${wire_headers}")
+
+set(violations "")
+set(checked 0)
+function(check_dir dir forbidden)
+  file(GLOB files "${SOURCE_DIR}/server/${dir}/*.h" "${SOURCE_DIR}/server/${dir}/*.cc")
+  list(LENGTH files n)
+  if(n EQUAL 0)
+    set(violations "${violations}server/${dir}: no sources found\n" PARENT_SCOPE)
+    return()
+  endif()
+  math(EXPR total "${checked} + ${n}")
+  set(checked ${total} PARENT_SCOPE)
+  foreach(f ${files})
+    file(STRINGS "${f}" lines)
+    file(RELATIVE_PATH rel "${SOURCE_DIR}" "${f}")
+    set(line_no 0)
+    foreach(line IN LISTS lines)
+      math(EXPR line_no "${line_no} + 1")
+      if(line MATCHES "^[ \t]*#[ \t]*include[ \t]*[<\"]([^>\"]+)[>\"]")
+        set(header "${CMAKE_MATCH_1}")
+        if(header MATCHES "${forbidden}")
+          set(violations "${violations}${rel}:${line_no}: includes ${header} (not allowed in server/${dir})\n")
+        endif()
+      endif()
+    endforeach()
+  endforeach()
+  set(violations "${violations}" PARENT_SCOPE)
+endfunction()
+
+check_dir(core "${core_forbidden}")
+check_dir(loop "${loop_forbidden}")
+
+if(LINK_FILE)
+  file(READ "${LINK_FILE}" links)
+  string(STRIP "${links}" links)
+  foreach(lib ${links})
+    if(lib MATCHES "ZMQ|zmq|[Pp]roto|spdlog|fmt|conica_net|conica_io|conica_scene|conica_curve")
+      set(violations "${violations}conica_loop links ${lib} (core and threads only)\n")
+    endif()
+  endforeach()
+endif()
+
+if(violations)
+  message(FATAL_ERROR "layering violations:\n${violations}")
+endif()
+message(STATUS "layering: ${checked} files in server/core and server/loop, no forbidden includes")

@@ -1,0 +1,464 @@
+// The fixed-rate loop in-process, without any wire: a ManualClock (time moves only when the loop
+// sleeps or the test advances it) and a MemoryTransport. Every expectation is computed
+// independently: deadlines from the period, forces and positions by running the core on a twin
+// model, missed ticks from the overrun rule.
+#include "loop/fixed_rate_loop.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <new>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/body.h"
+#include "core/step.h"
+#include "loop/clock.h"
+#include "loop/memory_transport.h"
+#include "loop/scene.h"
+
+// Counts operator new while `g_counting` is set (the tick path must allocate nothing).
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace conica::loop {
+namespace {
+
+constexpr double kRate = 1000;       // Hz
+constexpr TimeNs kPeriod = 1000000;  // ns, 1 / kRate
+constexpr TimeNs kStart = 5'000'000'000;
+constexpr double kRadius = 3e-3;     // m
+
+// A w x w x h (m) lattice of cells^3-ish hexahedra, bottom clamped, one probe, tissue-like card.
+BodySpec Lattice(const Vec3& size, const std::array<int, 3>& cells) {
+  BodySpec b;
+  b.mesh = make_box_lattice(size, cells);
+  b.density = 1000;
+  SpringCard card;
+  card.law = LawKind::kConical;
+  card.conical = ConicalCard{2e9, 1e-3, 2e-3, 8e-3, 10e-3, 3};
+  card.stiffness_cap = 20;
+  b.groups.push_back({"tissue", card, kAllFamilies, {}, Vec3::Zero(), 10});
+  FixedSelector bottom;
+  bottom.tolerance = 1e-9;
+  b.fixed.push_back(bottom);
+  b.options.dt = 1 / kRate;
+  b.options.mass_damping = 5;
+  b.probes.push_back(ProbeSpec{kRadius, 0});
+  return b;
+}
+BodySpec Small() { return Lattice(Vec3(0.02, 0.02, 0.01), {4, 4, 2}); }   // 75 nodes
+BodySpec Large() { return Lattice(Vec3(0.03, 0.02, 0.01), {6, 4, 2}); }   // 105 nodes
+
+std::string LoadByName(const std::string& name, BodySpec* spec) {
+  if (name == "small") *spec = Small();
+  else if (name == "large") *spec = Large();
+  else return "no scene called " + name;
+  return {};
+}
+
+// A twin of what the loop runs: the same spec built again, stepped by the core directly.
+struct Twin {
+  explicit Twin(const BodySpec& spec) {
+    EXPECT_EQ(build_model(spec, &model), "");
+    state = make_state(model);
+    ws = std::make_unique<Workspace>(model);
+  }
+  void steps(int n) {
+    for (int k = 0; k < n; ++k) step(model, state, *ws);
+  }
+  ProbeState press(const Vec3& at) {
+    set_probe(state, 0, at, true);
+    ProbeState ps = state.probes[0];
+    conica::probe_contact(model, state.x, 0, at, ps.radius, &ps);
+    state.probes[0] = ps;
+    return ps;
+  }
+  Model model;
+  State state;
+  std::unique_ptr<Workspace> ws;
+};
+
+// Pressed `depth` (m) into the top face (z = top) above the node column at (x, y).
+Vec3 Pressed(double x, double y, double top, double depth) {
+  return Vec3(x, y, top + kRadius - depth);
+}
+
+ProbeUpdate Probe(std::uint64_t seq, const Vec3& at, int probe_id = 0) {
+  ProbeUpdate u;
+  u.client_id = 3;
+  u.probe_id = probe_id;
+  u.sequence = seq;
+  u.position = at;
+  return u;
+}
+
+class LoopTest : public ::testing::Test {
+ protected:
+  void Start(LoopOptions opt = {}, const BodySpec& spec = Small()) {
+    opt.rate_hz = kRate;
+    opt.prepare.refuse_slow_scene = false;  // a loaded machine must not refuse the scene
+    loop_ = std::make_unique<FixedRateLoop>(std::move(opt));
+    auto scene = std::make_unique<Scene>();
+    ASSERT_EQ(prepare_scene(spec, loop_->prepare_options(), scene.get()), "");
+    loop_->install(std::move(scene));
+    loop_->begin(clock_, transport_);
+    ASSERT_EQ(loop_->next_deadline_ns(), kStart + kPeriod);
+  }
+  // Runs until the loop has ticked `n` times in all.
+  void TickTo(std::uint64_t n) {
+    while (loop_->stats().ticks < n) ASSERT_TRUE(loop_->tick());
+  }
+  static TimeNs At(double periods) { return kStart + static_cast<TimeNs>(periods * kPeriod); }
+
+  std::vector<const MemoryTransport::Frame*> ForceFrames() const {
+    std::vector<const MemoryTransport::Frame*> out;
+    for (const auto& f : transport_.frames())
+      if (!f.with_positions) out.push_back(&f);
+    return out;
+  }
+  template <class T>
+  std::vector<std::pair<TimeNs, const T*>> Sent() const {
+    std::vector<std::pair<TimeNs, const T*>> out;
+    for (const auto& s : transport_.sent())
+      if (const T* t = std::get_if<T>(&s.what)) out.push_back({s.at_ns, t});
+    return out;
+  }
+
+  ManualClock clock_{kStart};
+  MemoryTransport transport_{clock_};
+  std::unique_ptr<FixedRateLoop> loop_;
+};
+
+TEST_F(LoopTest, TicksAtTheFixedRateOnAbsoluteDeadlines) {
+  LoopOptions opt;
+  opt.positions_hz = 100;  // every 10th tick
+  Start(opt);
+  TickTo(50);
+  const auto frames = ForceFrames();
+  ASSERT_EQ(frames.size(), 50u);
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    EXPECT_EQ(frames[k]->at_ns, At(k + 1.0)) << k;  // tick k+1 runs at its deadline exactly
+    EXPECT_EQ(frames[k]->tick, k + 1);               // one core step per tick
+    EXPECT_NEAR(frames[k]->time, (k + 1) / kRate, 1e-12);  // s, summed dt
+  }
+  int positions = 0;
+  for (const auto& f : transport_.frames())
+    if (f.with_positions) {
+      ++positions;
+      EXPECT_EQ(f.tick % 10, 0u);
+      EXPECT_EQ(f.positions.size(), 75u);
+    }
+  EXPECT_EQ(positions, 5);
+  loop_->end();
+  EXPECT_EQ(loop_->stats().ticks, 50u);
+  EXPECT_EQ(loop_->stats().missed_ticks, 0u);
+  EXPECT_EQ(loop_->stats().lateness_max_us, 0);
+  EXPECT_EQ(loop_->stats().rate_hz, kRate);
+}
+
+TEST_F(LoopTest, ProbeUpdateIsAnsweredAtOnceWithTheCoreForceAndStepsTheBody) {
+  LoopOptions opt;
+  opt.positions_hz = 100;
+  Start(opt);
+  const Vec3 at = Pressed(0.01, 0.01, 0.01, 1.5e-3);
+  transport_.send_probe(At(10.5), 3, Probe(41, at));
+  TickTo(20);
+
+  // The twin: 10 ticks with no probe, then the probe placed and its contact evaluated.
+  Twin twin(Small());
+  twin.steps(10);
+  const ProbeState expected = twin.press(at);
+  ASSERT_GT(expected.contacts, 0);
+  ASSERT_GT(expected.force.z(), 0);  // pushed up, out of the body
+
+  const auto replies = Sent<ForceReply>();
+  ASSERT_EQ(replies.size(), 1u);
+  const ForceReply& r = *replies[0].second;
+  EXPECT_EQ(replies[0].first, At(10.5));  // answered when it arrived, between ticks 10 and 11
+  EXPECT_EQ(r.recv_ns, At(10.5));
+  EXPECT_EQ(r.tick, 10u);
+  EXPECT_EQ(r.update.sequence, 41u);
+  EXPECT_EQ(r.probe.force, expected.force);
+  EXPECT_EQ(r.probe.stiffness, expected.stiffness);
+  EXPECT_EQ(r.probe.contacts, expected.contacts);
+
+  // Ticks 11..20 integrate with the probe in place: the same positions and probe force.
+  twin.steps(10);
+  const MemoryTransport::Frame& last = transport_.frames().back();
+  ASSERT_TRUE(last.with_positions);
+  ASSERT_EQ(last.tick, 20u);
+  for (int i = 0; i < twin.model.num_nodes(); ++i) ASSERT_EQ(last.positions[i], twin.state.x[i]);
+  EXPECT_EQ(last.probes[0].force, twin.state.probes[0].force);
+  EXPECT_EQ(loop_->stats().probes_received, 1u);
+  EXPECT_EQ(loop_->stats().replies_sent, 1u);
+}
+
+TEST_F(LoopTest, CommandsAreAppliedBetweenTicks) {
+  LoopOptions opt;
+  opt.positions_hz = 100;
+  Start(opt);
+  transport_.send_control(At(5.5), 8, 1, SetParameter{Parameter::kGravityZ, -9.81});
+  transport_.send_control(At(12.5), 8, 2, Pause{});
+  transport_.send_control(At(15.5), 8, 3, Resume{});
+  transport_.send_control(At(16.5), 8, 4, SetParameter{Parameter::kDamping, -1});
+  transport_.send_control(At(16.5), 8, 5, SetParameter{Parameter::kUnknown, 1});
+  TickTo(20);
+
+  const auto results = Sent<ControlResult>();
+  ASSERT_EQ(results.size(), 5u);
+  const TimeNs when[] = {At(5.5), At(12.5), At(15.5), At(16.5), At(16.5)};
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_EQ(results[k].first, when[k]) << k;  // answered as it arrived
+    EXPECT_EQ(results[k].second->sequence, k + 1u);
+    EXPECT_EQ(results[k].second->num_nodes, 75u);
+  }
+  EXPECT_TRUE(results[0].second->ok);
+  EXPECT_EQ(results[0].second->message, "gravity_z set");
+  EXPECT_TRUE(results[1].second->stats.paused);
+  EXPECT_EQ(results[1].second->stats.ticks, 12u);
+  EXPECT_FALSE(results[3].second->ok);  // negative damping
+  EXPECT_FALSE(results[4].second->ok);  // unknown parameter
+  EXPECT_EQ(loop_->scene()->model->options.gravity.z(), -9.81);
+  EXPECT_EQ(loop_->scene()->model->options.mass_damping, 5);  // unchanged by the refused set
+
+  // Twin: gravity from tick 6 on; paused over ticks 13..15 (no step), stepping again from 16.
+  Twin twin(Small());
+  twin.steps(5);
+  twin.model.options.gravity.z() = -9.81;
+  twin.steps(7);   // ticks 6..12
+  twin.steps(5);   // ticks 16..20
+  const auto frames = ForceFrames();
+  ASSERT_EQ(frames.size(), 20u);
+  for (int k = 12; k < 15; ++k) EXPECT_EQ(frames[k]->tick, 12u) << "paused at tick " << k + 1;
+  EXPECT_EQ(frames[19]->tick, 17u);
+  const MemoryTransport::Frame& last = transport_.frames().back();
+  ASSERT_TRUE(last.with_positions);
+  for (int i = 0; i < twin.model.num_nodes(); ++i) ASSERT_EQ(last.positions[i], twin.state.x[i]);
+  EXPECT_LT(twin.state.x[twin.model.num_nodes() - 1].z(), 0.01);  // it did sag
+}
+
+TEST_F(LoopTest, BadMessagesAreAnsweredCountedAndChangeNothing) {
+  Start();
+  const Vec3 good = Pressed(0.01, 0.01, 0.01, 1e-3);
+  transport_.send_probe(At(2.5), 3, Probe(1, good));
+  transport_.send_undecodable(At(3.5), 3, Channel::kProbe, {ErrorKind::kMalformed, "garbage", 0});
+  transport_.send_probe(At(3.5), 3, Probe(2, Vec3(0.01, 0.01, 2.0)));  // outside the box
+  transport_.send_probe(At(3.5), 3, Probe(3, good, 1));                // no probe 1
+  transport_.send_probe(At(3.5), 3, Probe(4, Vec3(0.01, std::nan(""), 0.01)));
+  transport_.send_control(At(3.5), 8, 9, Pause{});
+  transport_.send_probe(At(4.5), 3, Probe(5, good));
+  TickTo(6);
+  const auto errors = Sent<Rejection>();
+  ASSERT_EQ(errors.size(), 4u);
+  EXPECT_EQ(errors[0].second->kind, ErrorKind::kMalformed);
+  EXPECT_EQ(errors[1].second->kind, ErrorKind::kBadValue);
+  EXPECT_EQ(errors[2].second->kind, ErrorKind::kUnknownProbe);
+  EXPECT_EQ(errors[3].second->kind, ErrorKind::kBadValue);
+  EXPECT_EQ(errors[1].second->sequence, 2u);
+  const LoopStats& s = loop_->stats();
+  EXPECT_EQ(s.errors, 4u);
+  EXPECT_EQ(s.errors_by_code[static_cast<int>(ErrorKind::kBadValue)], 2u);
+  EXPECT_EQ(s.errors_by_code[static_cast<int>(ErrorKind::kMalformed)], 1u);
+  EXPECT_EQ(s.errors_by_code[static_cast<int>(ErrorKind::kUnknownProbe)], 1u);
+  EXPECT_EQ(s.probes_received, 2u);
+  // The second good probe, after the bad ones, sees what the twin sees at tick 3 (paused since).
+  Twin twin(Small());
+  twin.steps(2);
+  twin.press(good);
+  twin.steps(1);
+  const ProbeState expected = twin.press(good);
+  const auto replies = Sent<ForceReply>();
+  ASSERT_EQ(replies.size(), 2u);
+  EXPECT_EQ(replies[1].second->tick, 3u);
+  EXPECT_EQ(replies[1].second->probe.force, expected.force);
+}
+
+TEST_F(LoopTest, SceneIsPreparedOffTheLoopAndSwappedAtATickBoundaryWithoutAMissedReply) {
+  // The loader waits for the test's word, so the preparation provably spans ticks.
+  std::atomic<bool> go{false};
+  LoopOptions opt;
+  opt.scene_loader = [&go](const std::string& name, BodySpec* spec) {
+    while (!go.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return LoadByName(name, spec);
+  };
+  Start(opt);
+  // A client presses every period, half-way between ticks.
+  const Vec3 at = Pressed(0.01, 0.01, 0.01, 1e-3);
+  for (int k = 1; k <= 11; ++k) transport_.send_probe(At(k + 0.5), 3, Probe(k, at));
+  transport_.send_control(At(3.5), 8, 21, LoadScene{"large"});
+  transport_.send_control(At(3.6), 8, 22, LoadScene{"small"});  // one at a time
+  TickTo(6);
+  EXPECT_TRUE(loop_->scene_pending());  // ticks 4..6 ran while it was loading
+  go = true;
+  // The worker builds and times the scene in real time; the loop's clock stands still meanwhile.
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!loop_->scene_ready() && std::chrono::steady_clock::now() < give_up)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  ASSERT_TRUE(loop_->scene_ready());
+  TickTo(12);
+
+  const auto results = Sent<ControlResult>();
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_EQ(results[0].second->sequence, 22u);  // refused at once: another is preparing
+  EXPECT_FALSE(results[0].second->ok);
+  EXPECT_EQ(results[0].first, At(3.6));
+  const ControlResult& loaded = *results[1].second;
+  EXPECT_EQ(loaded.sequence, 21u);
+  EXPECT_TRUE(loaded.ok) << loaded.message;
+  EXPECT_EQ(loaded.num_nodes, 105u);
+  EXPECT_EQ(results[1].first, At(7));  // at the deadline of tick 7: a tick boundary
+  EXPECT_EQ(loop_->scene()->model->num_nodes(), 105);
+
+  // Ticks 1..6 ran the small body, 7.. the large one.
+  const auto frames = ForceFrames();
+  ASSERT_EQ(frames.size(), 12u);
+  for (int k = 0; k < 12; ++k) EXPECT_EQ(frames[k]->num_nodes, k < 6 ? 75 : 105) << k;
+  // Every probe answered once, in order, when it arrived; the ones after the swap against the
+  // new body.
+  const auto replies = Sent<ForceReply>();
+  ASSERT_EQ(replies.size(), 11u);
+  for (int k = 0; k < 11; ++k) {
+    EXPECT_EQ(replies[k].second->update.sequence, k + 1u);
+    EXPECT_EQ(replies[k].first, At(k + 1.5));
+  }
+  Twin twin(Large());  // at rest at the swap, stepped in tick 7 (before the probe at 7.5)
+  twin.steps(1);
+  const ProbeState expected = twin.press(at);
+  EXPECT_EQ(replies[6].second->tick, 1u);
+  EXPECT_EQ(replies[6].second->probe.force, expected.force);
+  EXPECT_EQ(loop_->stats().missed_ticks, 0u);
+  EXPECT_EQ(loop_->stats().replies_sent, 11u);
+}
+
+TEST_F(LoopTest, RefusedSceneKeepsTheBody) {
+  LoopOptions opt;
+  opt.scene_loader = LoadByName;
+  Start(opt);
+  transport_.send_control(At(1.5), 8, 5, LoadScene{"kidney"});
+  TickTo(2);
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!loop_->scene_ready() && std::chrono::steady_clock::now() < give_up)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  TickTo(3);
+  const auto results = Sent<ControlResult>();
+  ASSERT_EQ(results.size(), 1u);
+  EXPECT_FALSE(results[0].second->ok);
+  EXPECT_EQ(results[0].second->message, "no scene called kidney");
+  EXPECT_EQ(results[0].second->num_nodes, 75u);
+  EXPECT_EQ(results[0].first, At(3));
+  EXPECT_EQ(loop_->scene()->model->num_nodes(), 75);
+}
+
+TEST_F(LoopTest, LoadSceneWithoutALoaderIsRefusedAtOnce) {
+  Start();
+  transport_.send_control(At(1.5), 8, 6, LoadScene{"small"});
+  TickTo(2);
+  const auto results = Sent<ControlResult>();
+  ASSERT_EQ(results.size(), 1u);
+  EXPECT_FALSE(results[0].second->ok);
+  EXPECT_EQ(results[0].first, At(1.5));
+  EXPECT_FALSE(loop_->scene_pending());
+}
+
+TEST_F(LoopTest, AnOverrunSkipsTheMissedDeadlinesAndCountsThem) {
+  Start();
+  // Tick 5's publish "takes" 3.5 periods.
+  const TimeNs overrun = 3 * kPeriod + kPeriod / 2;
+  transport_.on_publish = [&](const StateFrame& f) {
+    if (f.state->tick == 5 && !f.with_positions) clock_.advance(overrun);
+  };
+  TickTo(10);
+  loop_->end();
+  // The rule: the next deadline D6 = D5 + P; once the clock is past D6 + P, the deadlines up to
+  // the clock are skipped: missed = (t - D6) / P, and the next tick runs at once if it is late.
+  const TimeNs d5 = At(5), d6 = d5 + kPeriod, t = d5 + overrun;
+  const std::uint64_t missed = (t - d6) / kPeriod;
+  const TimeNs next = d6 + missed * kPeriod;
+  ASSERT_EQ(missed, 2u);
+  const auto frames = ForceFrames();
+  ASSERT_EQ(frames.size(), 10u);
+  EXPECT_EQ(frames[4]->at_ns, d5);
+  EXPECT_EQ(frames[5]->at_ns, t);  // late: at once
+  for (int k = 6; k < 10; ++k) EXPECT_EQ(frames[k]->at_ns, next + (k - 5) * kPeriod) << k;
+  EXPECT_EQ(loop_->stats().missed_ticks, missed);
+  EXPECT_DOUBLE_EQ(loop_->stats().lateness_max_us, (t - next) * 1e-3);
+  EXPECT_EQ(frames[9]->tick, 10u);  // dt stays fixed: one step per tick that ran
+}
+
+// A transport that answers nothing and hands over one probe update per period: what a steady
+// client looks like to the loop, with no recording (which would allocate).
+class SteadyClient final : public Transport {
+ public:
+  SteadyClient(Clock& clock, Vec3 at) : clock_(clock), at_(at) {}
+  bool poll(TimeNs deadline, Incoming* in) override {
+    const TimeNs t = clock_.now_ns();
+    if (t >= next_) {
+      next_ = t + kPeriod;
+      in->route = Route{};
+      in->message = Probe(++seq_, at_);
+      return true;
+    }
+    clock_.sleep_until(std::min(deadline, next_));
+    return false;
+  }
+  bool reply(const Route&, const ForceReply& r) override { return r.probe.contacts > 0; }
+  bool reply(const Route&, const ControlResult&) override { return true; }
+  bool reply(const Route&, const Rejection&) override { return false; }
+  void publish(const StateFrame&) override {}
+
+ private:
+  Clock& clock_;
+  Vec3 at_;
+  TimeNs next_ = kStart + kPeriod / 2;
+  std::uint64_t seq_ = 0;
+};
+
+// The loop's own work per tick and per probe reply: serving, input, step, publish, statistics.
+// The contact stage is stubbed (a unit force) so the count is the loop's; the core's stages have
+// their own allocation test (tests/core/alloc_test.cc).
+void UnitContact(const Model&, const State&, int, const Vec3&, double, ProbeState* probe) {
+  probe->force = Vec3::UnitZ();
+  probe->contacts = 1;
+}
+
+TEST(LoopAllocationTest, TicksAndProbeRepliesAllocateNothing) {
+  ManualClock clock(kStart);
+  SteadyClient client(clock, Pressed(0.01, 0.01, 0.01, 1e-3));
+  LoopOptions opt;
+  opt.rate_hz = kRate;
+  opt.contact = &UnitContact;
+  opt.prepare.refuse_slow_scene = false;
+  FixedRateLoop loop(opt);
+  auto scene = std::make_unique<Scene>();
+  ASSERT_EQ(prepare_scene(Small(), loop.prepare_options(), scene.get()), "");
+  loop.install(std::move(scene));
+  loop.begin(clock, client);
+  for (int k = 0; k < 10; ++k) ASSERT_TRUE(loop.tick());  // warm up
+  g_allocations = 0;
+  g_counting = true;
+  for (int k = 0; k < 1000; ++k) loop.tick();
+  g_counting = false;
+  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(loop.stats().ticks, 1010u);
+  EXPECT_GE(loop.stats().probes_received, 1000u);
+  EXPECT_EQ(loop.stats().replies_sent, loop.stats().probes_received);
+  loop.end();
+}
+
+}  // namespace
+}  // namespace conica::loop
