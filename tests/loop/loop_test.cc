@@ -346,22 +346,30 @@ TEST_F(LoopTest, SceneIsPreparedOffTheLoopAndSwappedAtATickBoundaryWithoutAMisse
 }
 
 TEST_F(LoopTest, RefusedSceneKeepsTheBody) {
+  std::atomic<bool> go{false};
   LoopOptions opt;
-  opt.scene_loader = LoadByName;
+  opt.scene_loader = [&go](const std::string& name, BodySpec* spec) {
+    while (!go.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return LoadByName(name, spec);
+  };
   Start(opt);
   transport_.send_control(At(1.5), 8, 5, LoadScene{"kidney"});
   TickTo(2);
+  EXPECT_TRUE(loop_->scene_pending());
+  go = true;
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
   while (!loop_->scene_ready() && std::chrono::steady_clock::now() < give_up)
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  ASSERT_TRUE(loop_->scene_ready());
   TickTo(3);
   const auto results = Sent<ControlResult>();
   ASSERT_EQ(results.size(), 1u);
   EXPECT_FALSE(results[0].second->ok);
   EXPECT_EQ(results[0].second->message, "no scene called kidney");
   EXPECT_EQ(results[0].second->num_nodes, 75u);
-  EXPECT_EQ(results[0].first, At(3));
+  EXPECT_EQ(results[0].first, At(3));  // at the next tick boundary
   EXPECT_EQ(loop_->scene()->model->num_nodes(), 75);
+  EXPECT_FALSE(loop_->scene_pending());
 }
 
 TEST_F(LoopTest, LoadSceneWithoutALoaderIsRefusedAtOnce) {
