@@ -1,4 +1,6 @@
 #include "core/body.h"
+
+#include "core/contact.h"
 #include "core/volume.h"
 
 #include <Eigen/Geometry>
@@ -449,16 +451,27 @@ std::string build_model(const BodySpec& spec, Model* out) {
   for (const auto& t : m.surface) sn.insert(t.begin(), t.end());
   m.surface_nodes.assign(sn.begin(), sn.end());
 
-  // Contact penalties default to a fraction of the explicit stability limit of the lightest
+  // Plate penalties default to a fraction of the explicit stability limit of the lightest
   // surface node, so that contact alone never destabilises a step.
   double m_min = std::numeric_limits<double>::infinity();
   for (int i : m.surface_nodes)
     if (m.mass[i] > 0) m_min = std::min(m_min, m.mass[i]);
   const double h = m.options.dt / m.options.substeps;
   const double k_default = 0.2 * m_min / (h * h);
-  for (auto& p : m.probes) {
-    if (!(p.radius > 0)) return "probe radius must be > 0 m";
-    if (p.stiffness <= 0) p.stiffness = k_default;
+  // Probes: the contact layer and the coupling default to the tissue's contact modulus
+  // (core/contact.h), not to the step.
+  m.contact_modulus = contact_modulus(m);
+  for (size_t k = 0; k < m.probes.size(); ++k) {
+    ProbeSpec& p = m.probes[k];
+    const std::string which = "probe " + std::to_string(k) + ": ";
+    if (!(p.radius > 0) || !std::isfinite(p.radius)) return which + "radius must be > 0 m";
+    if (!(p.stiffness >= 0) || !std::isfinite(p.stiffness))
+      return which + "stiffness must be >= 0 Pa/m (0: from the tissue)";
+    if (!(p.coupling >= 0) || !std::isfinite(p.coupling))
+      return which + "coupling must be >= 0 N/m (0: from the tissue)";
+    if (!(p.axis.norm() > 0) || !p.axis.allFinite()) return which + "axis must be nonzero";
+    p.axis.normalize();
+    if (p.contact == ContactModel::kNodes && p.stiffness <= 0) p.stiffness = k_default;
   }
   for (auto& p : m.planes) {
     if (!(p.normal.norm() > 0)) return "plane normal must be nonzero";

@@ -277,6 +277,12 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
     y[i] += s * cn.x();
     y[nn + i] += s * cn.y();
     y[2 * nn + i] += s * cn.z();
+    const Mat3& B = ws.contact_block[i];  // a surface probe's layer (core/contact.h)
+    if (B.squaredNorm() == 0) continue;
+    const Vec3 yi = ws.sys_h2 * (B * Vec3(p[i], p[nn + i], p[2 * nn + i]));
+    y[i] += yi.x();
+    y[nn + i] += yi.y();
+    y[2 * nn + i] += yi.z();
   }
   double* const w = ws.sys_chunk.data();
   constexpr int kC = Workspace::kChunkSprings;
@@ -352,6 +358,15 @@ void build_preconditioner(const Model& m, Workspace& ws) {
     d[3 * nn + i] += cn.x() * cn.y();
     d[4 * nn + i] += cn.x() * cn.z();
     d[5 * nn + i] += cn.y() * cn.z();
+    const Mat3& B = ws.contact_block[i];  // a surface probe's layer (core/contact.h)
+    if (B.squaredNorm() == 0) continue;
+    const Mat3 b = ws.sys_h2 * B;
+    d[i] += b(0, 0);
+    d[nn + i] += b(1, 1);
+    d[2 * nn + i] += b(2, 2);
+    d[3 * nn + i] += b(0, 1);
+    d[4 * nn + i] += b(0, 2);
+    d[5 * nn + i] += b(1, 2);
   }
   double* const b = ws.sys_chunk.data();
   constexpr int kC = Workspace::kChunkSprings;
@@ -485,9 +500,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
           h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.x0[i] - h * ws.v0[i]);
       for (int c = 0; c < 3; ++c) ws.sys_rhs[c * nn + i] = res[c] * ws.sys_free[c * nn + i];
     }
-    ws.num_contact_nodes = 0;
-    for (int i = 0; i < nn; ++i)
-      if (ws.contact_n[i].squaredNorm() > 0) ws.contact_nodes[ws.num_contact_nodes++] = i;
+    ws.sys_h2 = h * h;
     system_coefficients(m, ws, h);
     assemble_shear(m, ws);
     build_preconditioner(m, ws);

@@ -87,10 +87,27 @@ struct SolverOptions {
   double max_speed = 50;         // m/s: guard: faster nodes mean the step blew up
 };
 
-// A rigid spherical probe moved by a client.
+// A rigid tool moved by a client, in contact with the body's deformed surface through a proxy
+// (core/contact.h).
+enum class ToolShape : std::uint8_t {
+  kSphere = 0,  // a ball of `radius` around the pose
+  kPunch = 1,   // a flat-ended cylinder of `radius`: its end face centred at the pose, pushing along
+                // `axis`
+};
+enum class ContactModel : std::uint8_t {
+  kNodes = 0,    // a sphere against the nodes, a penalty per node (core/step.h)
+  kSurface = 1,  // the tool against the deformed surface triangles through a proxy (core/contact.h)
+};
 struct ProbeSpec {
   double radius = 5e-3;          // m
-  double stiffness = 0;          // N/m per node penalty; 0: chosen from masses and dt
+  double stiffness = 0;          // kNodes: N/m per node, 0: from node masses and the step;
+                                 // kSurface: Pa/m, the contact layer's pressure per metre of
+                                 // penetration, 0: from the tissue (kContactStiffnessFactor E* / R)
+  ContactModel contact = ContactModel::kNodes;
+  ToolShape shape = ToolShape::kSphere;
+  Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, punch: the direction it pushes along
+  double coupling = 0;           // kSurface: N/m, virtual coupling device-proxy; 0: kCouplingFactor
+                                 // E* R
 };
 
 // A rigid half-space {x : n.x >= offset} that nodes cannot enter (compression plates).
@@ -145,6 +162,7 @@ struct Model {
   std::vector<PlaneSpec> planes;
   SolverOptions options;
   Mapping mapping = Mapping::kStrain;
+  double contact_modulus = 0;               // Pa, E* of the body (core/contact.h), set at build
 
   int num_nodes() const { return static_cast<int>(rest.size()); }
   int num_springs() const { return static_cast<int>(rest_length.size()); }
@@ -153,12 +171,20 @@ struct Model {
 
 // Live pose of a probe and what the body does to it.
 struct ProbeState {
-  Vec3 center = Vec3::Zero();      // m
+  Vec3 center = Vec3::Zero();      // m, the device target the client sets
   double radius = 0;               // m (0: the model's)
   bool active = false;             // a probe far away or never placed does nothing
-  Vec3 force = Vec3::Zero();       // N, on the probe
+  Vec3 force = Vec3::Zero();       // N, on the device: the coupling force k_vc (proxy - center)
   Mat3 stiffness = Mat3::Zero();   // N/m, d force / d center with nodes held
-  int contacts = 0;                // nodes in contact
+  int contacts = 0;                // surface triangles in contact
+  // The proxy (core/contact.h): the pose the tool takes in the body's world.
+  Vec3 proxy = Vec3::Zero();       // m
+  bool proxy_placed = false;       // false until the first update after activation
+  double depth = 0;                // m, deepest penetration of the tool into the deformed surface
+  int anchor = -1;                 // surface triangle nearest the proxy (-1: none in reach)
+  Vec3 anchor_bary = Vec3::Zero(); // barycentric coordinates of the nearest point on it
+  Vec3 anchor_offset = Vec3::Zero();  // proxy - that point in the triangle's frame (its two edge
+                                      // vectors from node 0 and its unit normal)
 };
 
 struct PlaneState {

@@ -1,8 +1,10 @@
 #include "core/step_detail.h"
 
 #include "core/body.h"
+#include "core/contact.h"
 #include "core/volume.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -411,33 +413,74 @@ void shear_forces(const Model& m, const State& s, Workspace& ws) {
 
 void hard_stop_project(const Model& m, State& s, Workspace& ws);
 
-// Contact of probes and planes with every node, or with the listed ones only (`nodes`; the
-// multi-rate far field keeps its nodes out of contact, see far_step).
+// Marks node i as having a contact term this evaluation.
+void list_contact_node(Workspace& ws, int i) {
+  if (ws.in_contact[i]) return;
+  ws.in_contact[i] = 1;
+  ws.contact_nodes[ws.num_contact_nodes++] = i;
+}
+
+// A probe with the node contact law (step.h): every node inside its sphere, or the listed ones
+// only (`nodes`).
+void node_probe_forces(const Model& m, State& s, Workspace& ws, int q, bool with_jacobian,
+                       const std::vector<int>* nodes) {
+  const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
+  const double h = detail::substep_of(m);
+  ProbeState& p = s.probes[q];
+  p.force.setZero();
+  p.stiffness.setZero();
+  p.contacts = 0;
+  if (!p.active) return;
+  const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
+  const double kc = m.probes[q].stiffness;
+  for (int n = 0; n < nn; ++n) {
+    const int i = nodes ? (*nodes)[n] : n;
+    Vec3 f, dir;
+    Mat3 dfdc;
+    if (!node_contact(s.x[i], m.normal[i], p.center, R, kc, &f, &dfdc, &dir)) continue;
+    ws.force[i] += f;
+    p.force -= f;
+    p.stiffness += dfdc;
+    ++p.contacts;
+    // Jacobian h^2 k n n^T stored as a scaled direction (two probes on one node: approximate).
+    if (with_jacobian && m.fixed[i] != 7) {
+      ws.contact_n[i] += std::sqrt(h * h * kc) * dir;
+      list_contact_node(ws, i);
+    }
+  }
+}
+
+// Contact of probes (at their proxies, core/contact.h) and planes with the body: forces into
+// ws.force, each probe node's lumped layer stiffness into ws.contact_block and, with the
+// Jacobian, each plane node's scaled normal into ws.contact_n. Planes act on every node, or on
+// the listed ones only (`nodes`; the multi-rate far field keeps its nodes out of contact, see
+// far_step); a probe's candidate triangles are woken with the region (update_region).
 void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                     const std::vector<int>* nodes = nullptr) {
   const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
   const double h = detail::substep_of(m);
-  if (with_jacobian) std::fill(ws.contact_n.begin(), ws.contact_n.end(), Vec3::Zero());
+  for (int q = 0; q < ws.num_contact_nodes; ++q) {
+    const int i = ws.contact_nodes[q];
+    ws.contact_n[i].setZero();
+    ws.contact_block[i].setZero();
+    ws.in_contact[i] = 0;
+  }
+  ws.num_contact_nodes = 0;
   for (size_t q = 0; q < m.probes.size(); ++q) {
-    ProbeState& p = s.probes[q];
-    p.force.setZero();
-    p.stiffness.setZero();
-    p.contacts = 0;
-    if (!p.active) continue;
-    const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
-    const double kc = m.probes[q].stiffness;
-    for (int n = 0; n < nn; ++n) {
-      const int i = nodes ? (*nodes)[n] : n;
-      Vec3 f, dir;
-      Mat3 dfdc;
-      if (!node_contact(s.x[i], m.normal[i], p.center, R, kc, &f, &dfdc, &dir)) continue;
-      ws.force[i] += f;
-      p.force -= f;
-      p.stiffness += dfdc;
-      ++p.contacts;
-      // Jacobian h^2 k n n^T stored as a scaled direction (two probes on one node: approximate).
-      if (with_jacobian && m.fixed[i] != 7) ws.contact_n[i] += std::sqrt(h * h * kc) * dir;
+    if (m.probes[q].contact == ContactModel::kNodes) {
+      node_probe_forces(m, s, ws, static_cast<int>(q), with_jacobian, nodes);
+      continue;
     }
+    const ProbeState& p = s.probes[q];
+    if (!p.active || !p.proxy_placed) continue;
+    const std::vector<int>& cand = ws.probe_candidates[q];
+    ToolContact c;
+    tool_contact(m, static_cast<int>(q), p.radius > 0 ? p.radius : m.probes[q].radius, p.proxy,
+                 s.x, cand.data(), static_cast<int>(cand.size()), &c, ws.force.data(),
+                 ws.contact_block.data());
+    if (c.faces == 0) continue;
+    for (int t : cand)
+      for (int i : m.surface[t]) list_contact_node(ws, i);
   }
   for (size_t q = 0; q < m.planes.size(); ++q) {
     PlaneState& pl = s.planes[q];
@@ -453,11 +496,35 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
       ws.force[i] += f;
       pl.force -= f;
       ++pl.contacts;
-      // One normal per node for the Jacobian: a node touching a probe and a plane at once keeps
-      // the probe's, a rare case that only slows convergence.
-      if (with_jacobian && m.fixed[i] != 7 && ws.contact_n[i].squaredNorm() == 0)
+      // One normal per node for the Jacobian: a node behind two plates keeps the first's, a rare
+      // case that only slows convergence.
+      if (with_jacobian && m.fixed[i] != 7 && ws.contact_n[i].squaredNorm() == 0) {
         ws.contact_n[i] = std::sqrt(h * h * kp) * n;
+        list_contact_node(ws, i);
+      }
     }
+  }
+}
+
+// The proxy stage: every probe's proxy moves toward its device target with the nodes held
+// (core/contact.h), leaving the triangles near it for the contact stage.
+void update_proxies(const Model& m, State& s, Workspace& ws) {
+  for (size_t q = 0; q < m.probes.size(); ++q)
+    if (m.probes[q].contact == ContactModel::kSurface)
+      update_proxy(m, static_cast<int>(q), s.x, &ws.probe_candidates[q], &s.probes[q]);
+}
+
+// Explicit integrators take the contact layer semi-implicitly (step.h): a node with a layer
+// stiffness B advances with m (m I + h^2 B)^-1 f instead of f, on its free axes.
+void semi_implicit_contact(const Model& m, Workspace& ws, double h) {
+  for (int q = 0; q < ws.num_contact_nodes; ++q) {
+    const int i = ws.contact_nodes[q];
+    if (m.fixed[i] == 7) continue;
+    const Mat3& B = ws.contact_block[i];
+    if (B.squaredNorm() == 0) continue;
+    const Vec3& free = m.free_axes[i];
+    const Mat3 A = m.mass[i] * Mat3::Identity() + h * h * (free.asDiagonal() * B * free.asDiagonal());
+    ws.force[i] = m.mass[i] * A.ldlt().solve(ws.force[i]);
   }
 }
 
@@ -608,6 +675,7 @@ void hard_stop_project(const Model& m, State& s, Workspace& ws) {
 void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic) {
   const double h = detail::substep_of(m);
   forces_impl(m, s, ws, false);
+  semi_implicit_contact(m, ws, h);
   const int nn = m.num_nodes();
   if (!region_in_use(m, ws)) {
     advance_nodes(nn, h, symplectic, ws.force.front().data(), m.inv_mass.data(),
@@ -713,7 +781,11 @@ Workspace::Workspace(const Model& m) {
   chunk_awake.assign(chunks.size(), 1);
   active_scale = m.force_scale;
   contact_n.assign(nn, Vec3::Zero());
+  contact_block.assign(nn, Mat3::Zero());
   contact_nodes.assign(nn, 0);
+  in_contact.assign(nn, 0);
+  probe_candidates.resize(m.probes.size());
+  for (auto& c : probe_candidates) c.reserve(m.surface.size());
   for (auto* v : {&x0, &v0, &good_x, &good_v}) v->assign(nn, Vec3::Zero());
   sys_mass.assign(nn, 0.0);
   sys_free.assign(3 * nn, 0.0);
@@ -944,6 +1016,7 @@ double far_spectral_bound(const Model& m) {
 }
 
 void compute_forces(const Model& model, State& state, Workspace& ws) {
+  update_proxies(model, state, ws);
   forces_impl(model, state, ws, false);
 }
 
@@ -993,7 +1066,7 @@ double potential_energy(const Model& m, const State& s) {
   }
   for (size_t q = 0; q < m.probes.size(); ++q) {
     const ProbeState& p = s.probes[q];
-    if (!p.active) continue;
+    if (!p.active || m.probes[q].contact != ContactModel::kNodes) continue;
     const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
     for (int i = 0; i < m.num_nodes(); ++i) {
       const Vec3 u = s.x[i] - p.center;
@@ -1008,6 +1081,16 @@ double potential_energy(const Model& m, const State& s) {
       }
       e += 0.5 * m.probes[q].stiffness * depth * depth;
     }
+  }
+  for (size_t q = 0; q < m.probes.size(); ++q) {
+    const ProbeState& p = s.probes[q];
+    if (!p.active || !p.proxy_placed || m.probes[q].contact != ContactModel::kSurface) continue;
+    ToolContact c;
+    const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
+    tool_contact(m, static_cast<int>(q), R, p.proxy, s.x, nullptr, 0, &c);
+    // The layer and the virtual coupling between the device and the proxy.
+    e += c.energy + 0.5 * coupling_stiffness(m, static_cast<int>(q), R) *
+                        (p.proxy - p.center).squaredNorm();
   }
   for (size_t q = 0; q < m.planes.size(); ++q)
     for (const Vec3& x : s.x) {
@@ -1068,7 +1151,14 @@ bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, do
 }
 
 void probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
-                   double radius, ProbeState* probe) {
+                   double radius, ProbeState* probe, std::vector<int>* candidates) {
+  probe->center = center;
+  probe->active = true;
+  if (radius > 0) probe->radius = radius;
+  if (m.probes[k].contact == ContactModel::kSurface) {
+    update_proxy(m, k, x, candidates, probe);
+    return;
+  }
   probe->force.setZero();
   probe->stiffness.setZero();
   probe->contacts = 0;
@@ -1132,7 +1222,12 @@ void update_region(const Model& m, State& s, Workspace& ws) {
       boussinesq = rp * std::pow(1.1, std::ceil(std::log(boussinesq / rp) / std::log(1.1)));
     R[np] = std::max(2 * rp, rp + boussinesq);
     Rsleep[np] = 1.25 * R[np];
-    c[np++] = p.center;
+    c[np++] = p.proxy_placed && m.probes[q].contact == ContactModel::kSurface ? p.proxy : p.center;
+    // The nodes of the triangles the tool touches are awake, however large the triangles are.
+    if (p.proxy_placed)
+      for (int t : ws.probe_candidates[q])
+        if (tool_touches(m, static_cast<int>(q), rp, p.proxy, s.x, t))
+          for (int i : m.surface[t]) ws.wake[i] = 1;
   }
   int awake_count = 0;
   for (int i = 0; i < nn; ++i) {
@@ -1334,6 +1429,7 @@ bool nodes_ok(const Model& m, State& s, const std::vector<int>& nodes) {
 }
 
 StepStatus step(const Model& m, State& s, Workspace& ws) {
+  update_proxies(m, s, ws);
   const bool region = m.options.active_region && m.options.integrator != Integrator::kImplicitEuler;
   // Multi-rate far field: the region is chosen at the start of an interval, the far field steps at
   // its end; in between only the awake nodes change, and only they are saved and checked.

@@ -13,7 +13,8 @@
 //                the implicit system stays positive definite)
 // Maxwell dashpot: e_m relaxes to delta with time constant tau, updated exactly per step:
 //   e_m <- delta + (e_m - delta) exp(-h / tau).
-// Contact, per node inside a sphere of radius R around c (u = x - c, r = |u|):
+// Contact with probes, by the probe's contact model.
+// ContactModel::kNodes (the default): per node inside a sphere of radius R around c (u = x - c, r = |u|):
 //   surface node with outward normal n: it leaves the sphere inward along -n by
 //     e = a + sqrt(a^2 - r^2 + R^2), a = u.n  (so the probe is pushed out of the body even after
 //     slipping between surface nodes);  f_node = -k_c s n with the depth
@@ -28,6 +29,13 @@
 //   probe force = -sum f_node, and its 3x3 stiffness d(probe force)/dc (nodes held) exactly.
 // The surface potential's force is not its gradient (the normal direction is fixed per node): a
 // penalty of this form is not conservative in tangential motion, which the energy checks allow.
+// ContactModel::kSurface: rigid tools against the deformed surface through a proxy (core/contact.h).
+// At the start of a tick each probe's proxy moves toward its device target with the nodes held
+// (the proxy stage); the body then steps with the tools held at their proxies, the contact
+// layer's forces on the surface triangles' nodes in its forces. Explicit integrators take the
+// contact layer semi-implicitly: a node in contact advances with the force
+// m (m I + h^2 B)^-1 f, B its lumped layer stiffness, which bounds the layer's stiffness from
+// above, so the stiff layer never limits the step (the equilibrium is the same: f = 0 there).
 // Rigid planes {n.x >= offset}: f_node = k_p (offset - n.x) n for nodes behind the plane.
 //
 // Active region (options.active_region, explicit integrators): a probe pressing with force P moves
@@ -111,10 +119,18 @@ struct Workspace {
   // Implicit solver (implicit.cc). Node vectors named sys_* are component-major: entry c n + i
   // is component c of node i; sys_diag and sys_pre hold six such entries (00 11 22 01 02 12).
   std::vector<double> alpha, beta;                // (num_springs) system coefficients
-  std::vector<Vec3> contact_n;                    // (num_nodes) contact normal * sqrt(h^2 k)
-  std::vector<int> contact_nodes;                 // (num_nodes) the first num_contact_nodes have a
-                                                  // contact normal
+  // Contact (core/contact.h). Planes: normal * sqrt(h^2 k_p) per node behind a plate (implicit
+  // only). Probes: each node's lumped layer stiffness (N/m), what the implicit system and the
+  // explicit integrators' semi-implicit contact update use. The first num_contact_nodes entries of
+  // contact_nodes list the nodes with either (in_contact flags them).
+  std::vector<Vec3> contact_n;                    // (num_nodes)
+  std::vector<Mat3> contact_block;                // (num_nodes) N/m
+  std::vector<int> contact_nodes;                 // (num_nodes)
+  std::vector<std::uint8_t> in_contact;           // (num_nodes)
   int num_contact_nodes = 0;
+  double sys_h2 = 0;                              // s^2, h^2 of the implicit system being solved
+  std::vector<std::vector<int>> probe_candidates;  // (probes) surface triangles near each proxy,
+                                                   // capacity reserved for every triangle
   std::vector<Vec3> x0, v0;                       // (num_nodes) state at the step's start
   std::vector<double> sys_mass;                   // (num_nodes) kg, m (1 + h mu)
   std::vector<double> sys_free;                   // (3 num_nodes) 1 on free axes, 0 on fixed
@@ -227,11 +243,13 @@ inline constexpr double kContactDepthCap = 2.0;
 bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, double kc,
                   Vec3* f_node, Mat3* dfdc, Vec3* dir);
 
-// The contact stage alone, for probe k as a sphere of radius `radius` (m; <= 0: the model's)
-// around `center` against node positions x: force on the probe, its stiffness and the contact
-// count, without touching the nodes. What the server answers a probe update with between ticks.
+// The contact stage alone for probe k (kNodes: the node law against x, nodes held; kSurface: the
+// proxy stage, moving probe->proxy) at the device target `center` (m) with a sphere or punch
+// of radius `radius` (m; <= 0: the probe's): moves probe->proxy and fills probe->force (on the
+// device), stiffness and contacts against node positions x, without touching the nodes. What the
+// server answers a probe update with between ticks. `candidates` as in update_proxy.
 void probe_contact(const Model& model, const std::vector<Vec3>& x, int k, const Vec3& center,
-                   double radius, ProbeState* probe);
+                   double radius, ProbeState* probe, std::vector<int>* candidates = nullptr);
 
 // Moves a probe (input stage). Inactive probes exert nothing.
 void set_probe(State& state, int probe, const Vec3& center, bool active = true);

@@ -236,9 +236,34 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     const auto& p = scene.probe(k);
     if (!(p.radius() > 0) || !std::isfinite(p.radius()))
       return Error{loc.at("probe", k) + "probe " + std::to_string(k) + ": radius must be > 0 m"};
-    if (p.stiffness() < 0)
-      return Error{loc.at("probe", k) + "probe " + std::to_string(k) + ": stiffness must be >= 0"};
-    b.probes.push_back(ProbeSpec{p.radius(), p.stiffness()});
+    const std::string where = loc.at("probe", k) + "probe " + std::to_string(k) + ": ";
+    if (!(p.stiffness() >= 0) || !std::isfinite(p.stiffness()))
+      return Error{where + "stiffness must be >= 0 Pa/m (0: from the tissue)"};
+    if (!(p.coupling() >= 0) || !std::isfinite(p.coupling()))
+      return Error{where + "coupling must be >= 0 N/m (0: from the tissue)"};
+    ProbeSpec spec;
+    spec.radius = p.radius();
+    spec.stiffness = p.stiffness();
+    spec.coupling = p.coupling();
+    switch (p.contact()) {
+      case v1::NODES: spec.contact = ContactModel::kNodes; break;
+      case v1::SURFACE: spec.contact = ContactModel::kSurface; break;
+      default: return Error{where + "unknown contact model"};
+    }
+    if (spec.contact == ContactModel::kNodes && p.shape() != v1::SPHERE)
+      return Error{where + "shape PUNCH needs contact: SURFACE"};
+    switch (p.shape()) {
+      case v1::SPHERE: spec.shape = ToolShape::kSphere; break;
+      case v1::PUNCH: spec.shape = ToolShape::kPunch; break;
+      default: return Error{where + "unknown shape"};
+    }
+    if (p.has_axis()) {
+      spec.axis = vec(p.axis());
+      if (!(spec.axis.norm() > 0) || !spec.axis.allFinite())
+        return Error{where + "axis must be a nonzero vector"};
+      spec.axis.normalize();
+    }
+    b.probes.push_back(spec);
   }
   for (int k = 0; k < scene.plate_size(); ++k) {
     const auto& p = scene.plate(k);

@@ -1,0 +1,563 @@
+#include "core/contact.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <cmath>
+
+namespace conica {
+namespace {
+
+// Gauss-Legendre on [0, 1].
+constexpr int kGauss = 4;
+constexpr double kGaussX[kGauss] = {0.0694318442029737, 0.3300094782075719, 0.6699905217924281,
+                                    0.9305681557970263};
+constexpr double kGaussW[kGauss] = {0.1739274225687269, 0.3260725774312731, 0.3260725774312731,
+                                    0.1739274225687269};
+// Accumulates the layer's integrand at Gauss points of one triangle.
+struct Accumulator {
+  const ContactLayer& layer;
+  const Vec3& c;
+  double R;
+  ToolContact* out;
+  Vec3* f[3];    // node forces (null: not wanted)
+  Mat3* b[3];    // node blocks (null: not wanted)
+  bool touched = false;
+
+  // Point y of barycentric coordinates l, area weight w (m^2, may be negative: signed pieces).
+  void add(const Vec3& y, const double l[3], double w) {
+    const Vec3 d = y - c;
+    const double r = d.norm();
+    const double g = R - r;
+    if (!(g > 0) || !(r > 0)) return;
+    double p, dp, psi;
+    layer.eval(g, &p, &dp, &psi);
+    const Vec3 u = d / r;
+    const Mat3 uu = u * u.transpose();
+    out->energy += w * psi;
+    out->force -= w * p * u;
+    out->stiffness += w * (-dp * uu + (p / r) * (Mat3::Identity() - uu));
+    out->stiffness_psd -= w * dp * uu;
+    out->depth = std::max(out->depth, g);
+    touched = true;
+    for (int a = 0; a < 3; ++a) {
+      if (f[a]) *f[a] += (w * l[a] * p) * u;
+      if (b[a]) *b[a] += (w * l[a] * dp) * uu;
+    }
+  }
+};
+
+// The punch's integrand: penetration g = -(y - c).a behind its face, pushed along a.
+struct PunchAccumulator {
+  const ContactLayer& layer;
+  const Vec3& c;
+  const Vec3& axis;
+  double R;
+  ToolContact* out;
+  Vec3* f[3];
+  Mat3* b[3];
+  bool touched = false;
+
+  void add(const Vec3& y, const double l[3], double w) {
+    const double g = -(y - c).dot(axis);
+    if (!(g > 0)) return;
+    double p, dp, psi;
+    layer.eval(g, &p, &dp, &psi);
+    const Mat3 aa = axis * axis.transpose();
+    out->energy += w * psi;
+    out->force -= w * p * axis;
+    out->stiffness -= w * dp * aa;
+    out->stiffness_psd -= w * dp * aa;
+    out->depth = std::max(out->depth, g);
+    touched = true;
+    for (int k = 0; k < 3; ++k) {
+      if (f[k]) *f[k] += (w * l[k] * p) * axis;
+      if (b[k]) *b[k] += (w * l[k] * dp) * aa;
+    }
+  }
+};
+
+Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, Vec3* bary);
+
+// The integral over the part of triangle (Q0, Q1, Q2) inside the disc of radius `a` about the
+// origin, in their plane (unit normal n; the Q are relative to the disc's centre): calls
+// add(l, w) at Gauss points of barycentric coordinates l with area weights w (times `scale`).
+// The region is convex: it is cut into pieces from its point O nearest the disc's centre,
+// {O + s (A + t D)}, A = Q_k - O, D = Q_{k+1} - Q_k, s in [0, s_max(t)], t split where the edge
+// meets the rim, so every piece has the rim or the edge as a smooth boundary and a non-negative
+// area element s ((A x D) . n) ds dt.
+template <typename Add>
+void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&& add) {
+  const double a2 = a * a;
+  Vec3 bo;
+  const Vec3 O = closest_on_triangle(Vec3::Zero(), Q[0], Q[1], Q[2], &bo);
+  if (!(O.squaredNorm() < a2)) return;  // the disc misses the triangle
+  const Vec3 e1 = Q[1] - Q[0], e2 = Q[2] - Q[0];
+  const double g11 = e1.dot(e1), g12 = e1.dot(e2), g22 = e2.dot(e2);
+  const double det = g11 * g22 - g12 * g12;
+  if (!(det > 0)) return;
+  const Vec3 d1 = (g22 * e1 - g12 * e2) / det, d2 = (g11 * e2 - g12 * e1) / det;
+  const double wo = O.squaredNorm() - a2;  // < 0
+  for (int k = 0; k < 3; ++k) {
+    const Vec3& Qa = Q[k];
+    const Vec3& Qb = Q[(k + 1) % 3];
+    const Vec3 A = Qa - O, D = Qb - Qa;
+    if (!(A.cross(D).dot(n) > 0)) continue;  // O on this edge
+    // The edge point Q_a + t D is on the rim at the roots of |D|^2 t^2 + 2 (Q_a.D) t + |Q_a|^2 - a^2.
+    double breaks[4] = {0, 1, 1, 1};
+    int nb = 1;
+    const double qa = D.squaredNorm(), qb = Qa.dot(D), qc = Qa.squaredNorm() - a2;
+    const double disc = qb * qb - qa * qc;
+    if (qa > 0 && disc > 0) {
+      const double sq = std::sqrt(disc);
+      for (double t : {(-qb - sq) / qa, (-qb + sq) / qa})
+        if (t > 0 && t < 1) breaks[nb++] = t;
+    }
+    breaks[nb++] = 1;
+    // Polar coordinates about O on each piece: rays at angle theta (two panels of at most 90
+    // degrees), out to the edge or the rim, whichever the piece has as its boundary.
+    const double along_edge = A.cross(D).dot(n);
+    for (int piece = 0; piece + 1 < nb; ++piece) {
+      const double t0 = breaks[piece], t1 = breaks[piece + 1];
+      if (!(t1 > t0)) continue;
+      const Vec3 ea = A + t0 * D, eb = A + t1 * D;
+      const double span = std::atan2(ea.cross(eb).dot(n), ea.dot(eb));  // in (0, pi)
+      if (!(span > 0)) continue;
+      const Vec3 u1 = ea.normalized(), u2 = n.cross(u1);
+      // The piece's boundary: the rim when its midpoint lies outside the disc, else the edge.
+      const bool rim = (Qa + 0.5 * (t0 + t1) * D).squaredNorm() > a2;
+      // A fixed rule per piece, so the integral is continuous as the tool moves.
+      constexpr int panels = 2;
+      for (int pn = 0; pn < panels; ++pn)
+        for (int i = 0; i < kGauss; ++i) {
+          Vec3 w;      // the ray's direction (rim) or its end on the edge (edge)
+          double wt;   // weight of the ray
+          if (rim) {
+            // Polar: rays at angle theta, out to the rim, area element rho d rho d theta.
+            const double dth = span / panels, th = (pn + kGaussX[i]) * dth;
+            w = std::cos(th) * u1 + std::sin(th) * u2;
+            const double ow = O.dot(w);
+            const double rmax = -ow + std::sqrt(std::max(0.0, ow * ow - wo));
+            w *= rmax;
+            wt = dth * kGaussW[i] * rmax * rmax * scale;
+          } else {
+            // Along the edge: rays to O + A + t D, area element s ((A x D) . n) ds dt.
+            const double dt = (t1 - t0) / panels, t = t0 + (pn + kGaussX[i]) * dt;
+            w = A + t * D;
+            wt = dt * kGaussW[i] * along_edge * scale;
+          }
+          for (int j = 0; j < kGauss; ++j) {
+            const Vec3 r = O + kGaussX[j] * w - Q[0];
+            double l[3];
+            l[1] = d1.dot(r);
+            l[2] = d2.dot(r);
+            l[0] = 1 - l[1] - l[2];
+            add(l, wt * kGaussX[j] * kGaussW[j]);
+          }
+        }
+    }
+  }
+}
+
+// The sphere (centre c, radius R) against triangle (p0, p1, p2): the integral over the part of
+// the triangle inside the ball, the disc the ball cuts from the triangle's plane.
+void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator& acc) {
+  const Vec3 nv = (p1 - p0).cross(p2 - p0);
+  const double area2 = nv.norm();
+  if (!(area2 > 0)) return;
+  const Vec3 n = nv / area2;
+  const double R = acc.R;
+  const double z = (acc.c - p0).dot(n);
+  if (!(std::abs(z) < R)) return;
+  const Vec3 F = acc.c - z * n;  // the disc's centre in the triangle's plane
+  const Vec3 Q[3] = {p0 - F, p1 - F, p2 - F};
+  disc_triangle(Q, n, std::sqrt(R * R - z * z), 1.0, [&](const double* l, double w) {
+    acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, l, w);
+  });
+  if (acc.touched) {  // the exact depth: R less the distance to the triangle
+    Vec3 b;
+    const double d = (closest_on_triangle(acc.c, p0, p1, p2, &b) - acc.c).norm();
+    acc.out->depth = std::max(acc.out->depth, R - d);
+  }
+}
+
+// The punch (end face centred at c, pushing along unit a, radius R) against a triangle: its
+// footprint is the disc of radius R about the axis in the face plane; the triangle is projected
+// along the axis onto that plane (an affine map: barycentric coordinates carry over, areas scale
+// by the ratio of the real to the projected area).
+void punch_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, PunchAccumulator& acc) {
+  const Vec3& ax = acc.axis;
+  const double area2 = (p1 - p0).cross(p2 - p0).norm();
+  if (!(area2 > 0)) return;
+  const Mat3 P = Mat3::Identity() - ax * ax.transpose();
+  const Vec3 Q[3] = {P * (p0 - acc.c), P * (p1 - acc.c), P * (p2 - acc.c)};
+  const Vec3 pn = (Q[1] - Q[0]).cross(Q[2] - Q[0]);
+  const double proj_area2 = pn.norm();
+  if (!(proj_area2 > 1e-12 * area2)) return;  // the triangle is edge-on to the punch
+  disc_triangle(Q, pn / proj_area2, acc.R, area2 / proj_area2, [&](const double* l, double w) {
+    acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, l, w);
+  });
+}
+
+// Closest point to p on triangle (a, b, c) (Ericson, Real-Time Collision Detection 5.1.5), with
+// its barycentric coordinates.
+Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, Vec3* bary) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) {
+    *bary = Vec3(1, 0, 0);
+    return a;
+  }
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) {
+    *bary = Vec3(0, 1, 0);
+    return b;
+  }
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    *bary = Vec3(1 - v, v, 0);
+    return a + v * ab;
+  }
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) {
+    *bary = Vec3(0, 0, 1);
+    return c;
+  }
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    *bary = Vec3(1 - w, 0, w);
+    return a + w * ac;
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    *bary = Vec3(0, 1 - w, w);
+    return b + w * (c - b);
+  }
+  const double denom = 1 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  *bary = Vec3(1 - v - w, v, w);
+  return a + ab * v + ac * w;
+}
+
+// Parameter in [0, 1] at which segment p -> q first meets triangle (a, b, c), or 2 when it does
+// not (Moller-Trumbore, both sides).
+double segment_triangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b,
+                        const Vec3& c) {
+  const Vec3 d = q - p, e1 = b - a, e2 = c - a;
+  const Vec3 h = d.cross(e2);
+  const double det = e1.dot(h);
+  if (std::abs(det) < 1e-30) return 2;
+  const double inv = 1 / det;
+  const Vec3 s = p - a;
+  const double u = inv * s.dot(h);
+  if (u < 0 || u > 1) return 2;
+  const Vec3 qv = s.cross(e1);
+  const double v = inv * d.dot(qv);
+  if (v < 0 || u + v > 1) return 2;
+  const double t = inv * e2.dot(qv);
+  return t >= 0 && t <= 1 ? t : 2;
+}
+
+double probe_radius(const Model& m, int k, const ProbeState& p) {
+  return p.radius > 0 ? p.radius : m.probes[k].radius;
+}
+
+}  // namespace
+
+double coupling_stiffness(const Model& m, int k, double R) {
+  const double kvc = m.probes[k].coupling;
+  return kvc > 0 ? kvc : kCouplingFactor * m.contact_modulus * R;
+}
+
+bool tool_touches(const Model& m, int k, double R, const Vec3& pose, const std::vector<Vec3>& x,
+                  int t) {
+  const auto& f = m.surface[t];
+  const Vec3 &p0 = x[f[0]], &p1 = x[f[1]], &p2 = x[f[2]];
+  Vec3 b;
+  if (m.probes[k].shape == ToolShape::kSphere)
+    return (closest_on_triangle(pose, p0, p1, p2, &b) - pose).squaredNorm() < R * R;
+  const Vec3& a = m.probes[k].axis;
+  const Mat3 P = Mat3::Identity() - a * a.transpose();
+  const bool behind = (p0 - pose).dot(a) < 0 || (p1 - pose).dot(a) < 0 || (p2 - pose).dot(a) < 0;
+  return behind && closest_on_triangle(Vec3::Zero(), P * (p0 - pose), P * (p1 - pose),
+                                       P * (p2 - pose), &b)
+                           .squaredNorm() < R * R;
+}
+
+void ContactLayer::eval(double g, double* p, double* dp, double* psi) const {
+  if (!(g > 0)) {
+    *p = *dp = *psi = 0;
+    return;
+  }
+  const double gc = 0.9 * g_max;
+  const double gg = std::min(g, gc);
+  const double r = 1 - gg / g_max;
+  double pc = k * gg / r, dpc = k / (r * r), psic = k * g_max * (-gg - g_max * std::log(r));
+  if (g <= gc) {
+    *p = pc;
+    *dp = dpc;
+    *psi = psic;
+    return;
+  }
+  const double dg = g - gc;
+  *p = pc + dpc * dg;
+  *dp = dpc;
+  *psi = psic + pc * dg + 0.5 * dpc * dg * dg;
+}
+
+ContactLayer contact_layer(const Model& m, int k, double R) {
+  ContactLayer layer;
+  const double ks = m.probes[k].stiffness;
+  layer.k = ks > 0 ? ks : kContactStiffnessFactor * m.contact_modulus / R;
+  layer.g_max = kContactDepthFraction * R;
+  return layer;
+}
+
+double contact_modulus(const Model& m) {
+  // Springs: an isotropic central-force network, E = sum(k_ax l0^2) / (6 V), nu = 1/4.
+  double volume = 0;
+  for (const auto& t : m.surface) {
+    const Vec3 &a = m.rest[t[0]], &b = m.rest[t[1]], &c = m.rest[t[2]];
+    volume += a.dot(b.cross(c)) / 6;  // divergence theorem over the outward surface
+  }
+  volume = std::abs(volume);
+  double kl2 = 0;
+  for (const SpringGroup& g : m.groups) {
+    const double k0 = g.law ? g.law->rest_stiffness() : g.card.hooke_k;
+    for (int s = g.begin; s < g.end; ++s)
+      kl2 += m.force_scale[s] * m.deflection_scale[s] * k0 * m.rest_length[s] * m.rest_length[s];
+  }
+  const double E_net = volume > 0 ? kl2 / (6 * volume) : 0.0;
+  const double nu_net = 0.25;
+  double G = E_net / (2 * (1 + nu_net)) + m.shear_modulus;
+  double K = E_net / (3 * (1 - 2 * nu_net)) + m.bulk_modulus;
+  if (!(G > 0)) G = 1.0;  // a body of no stiffness: any positive value keeps the layer defined
+  if (!(K > 0)) K = G;
+  const double E = 9 * K * G / (3 * K + G);
+  const double nu = (3 * K - 2 * G) / (2 * (3 * K + G));
+  return E / (1 - nu * nu);
+}
+
+void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::vector<Vec3>& x,
+                  const int* tris, int n, ToolContact* out, Vec3* node_force, Mat3* node_block) {
+  *out = ToolContact{};
+  const ContactLayer layer = contact_layer(m, k, R);
+  const int count = tris ? n : static_cast<int>(m.surface.size());
+  const ProbeSpec& spec = m.probes[k];
+  const Vec3 axis = spec.axis.normalized();
+  for (int q = 0; q < count; ++q) {
+    const int t = tris ? tris[q] : q;
+    const auto& tri = m.surface[t];
+    const Vec3 &p0 = x[tri[0]], &p1 = x[tri[1]], &p2 = x[tri[2]];
+    Vec3* f[3] = {nullptr, nullptr, nullptr};
+    Mat3* b[3] = {nullptr, nullptr, nullptr};
+    for (int a = 0; a < 3; ++a) {
+      if (node_force) f[a] = &node_force[tri[a]];
+      if (node_block) b[a] = &node_block[tri[a]];
+    }
+    bool touched;
+    if (spec.shape == ToolShape::kSphere) {
+      // Quick reject: the triangle's bounding sphere misses the ball.
+      const Vec3 cen = (p0 + p1 + p2) / 3;
+      const double rad = std::sqrt(std::max({(p0 - cen).squaredNorm(), (p1 - cen).squaredNorm(),
+                                             (p2 - cen).squaredNorm()}));
+      if ((cen - pose).squaredNorm() >= (R + rad) * (R + rad)) continue;
+      Accumulator acc{layer, pose, R, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
+      sphere_triangle(p0, p1, p2, acc);
+      touched = acc.touched;
+    } else {
+      // Quick reject: every vertex in front of the face, or the triangle far from the axis.
+      if ((p0 - pose).dot(axis) >= 0 && (p1 - pose).dot(axis) >= 0 &&
+          (p2 - pose).dot(axis) >= 0)
+        continue;
+      PunchAccumulator acc{layer, pose, axis, R, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
+      punch_triangle(p0, p1, p2, acc);
+      touched = acc.touched;
+    }
+    out->faces += touched;
+  }
+}
+
+bool inside_surface(const Model& m, const std::vector<Vec3>& x, const Vec3& p) {
+  // Generalised winding number: the solid angles of the outward triangles seen from p sum to
+  // 4 pi inside a closed surface and 0 outside (Van Oosterom and Strackee's formula).
+  double omega = 0;
+  for (const auto& t : m.surface) {
+    const Vec3 a = x[t[0]] - p, b = x[t[1]] - p, c = x[t[2]] - p;
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    const double num = a.dot(b.cross(c));
+    const double den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+    omega += 2 * std::atan2(num, den);
+  }
+  return omega > 2 * M_PI;
+}
+
+void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector<int>* candidates,
+                  ProbeState* p) {
+  p->force.setZero();
+  p->stiffness.setZero();
+  p->contacts = 0;
+  p->depth = 0;
+  if (candidates) candidates->clear();
+  if (!p->active) {
+    p->proxy_placed = false;
+    p->anchor = -1;
+    return;
+  }
+  const double R = probe_radius(m, k, *p);
+  const double kvc = coupling_stiffness(m, k, R);
+  const Vec3 target = p->center;
+  const int nt = static_cast<int>(m.surface.size());
+  const bool spec_is_sphere = m.probes[k].shape == ToolShape::kSphere;
+  // The proxy never moves deeper than this into the surface it sees (the barrier's linear
+  // extension starts there).
+  const double g_stop = 0.9 * kContactDepthFraction * R;
+  // Start: the last proxy carried by the surface point it rode on, or, for a tool just placed,
+  // the target itself or (inside the body) the nearest point of the surface.
+  Vec3 start = p->proxy;
+  auto nearest = [&](const Vec3& y, const int* list, int count, int* tri, Vec3* bary) {
+    double best = std::numeric_limits<double>::infinity();
+    Vec3 at = y;
+    for (int q = 0; q < count; ++q) {
+      const int t = list ? list[q] : q;
+      const auto& f = m.surface[t];
+      Vec3 b;
+      const Vec3 c = closest_on_triangle(y, x[f[0]], x[f[1]], x[f[2]], &b);
+      const double d2 = (c - y).squaredNorm();
+      if (d2 < best) {
+        best = d2;
+        at = c;
+        *tri = t;
+        *bary = b;
+      }
+    }
+    return at;
+  };
+  auto tri_normal = [&](int t) {
+    const auto& f = m.surface[t];
+    return Vec3((x[f[1]] - x[f[0]]).cross(x[f[2]] - x[f[0]]).normalized());
+  };
+  // The triangle's frame: its edges from node 0 and its unit normal.
+  auto tri_frame = [&](int t) {
+    const auto& f = m.surface[t];
+    Mat3 E;
+    E.col(0) = x[f[1]] - x[f[0]];
+    E.col(1) = x[f[2]] - x[f[0]];
+    E.col(2) = E.col(0).cross(E.col(1)).normalized();
+    return E;
+  };
+  if (!p->proxy_placed) {
+    start = target;
+    if (nt > 0 && inside_surface(m, x, target)) {
+      int t = 0;
+      Vec3 b;
+      const Vec3 at = nearest(target, nullptr, nt, &t, &b);
+      // The reference point just outside, the tool touching the surface (the sphere's centre
+      // one radius out, half the barrier depth in).
+      const double out = spec_is_sphere ? R - 0.5 * kContactDepthFraction * R : 1e-3 * R;
+      start = at + out * tri_normal(t);
+    }
+    p->proxy_placed = true;
+  } else if (p->anchor >= 0 && p->anchor < nt) {
+    const auto& f = m.surface[p->anchor];
+    const Vec3& b = p->anchor_bary;
+    const Vec3 at = b[0] * x[f[0]] + b[1] * x[f[1]] + b[2] * x[f[2]];
+    start = at + tri_frame(p->anchor) * p->anchor_offset;
+  }
+  // Candidates: triangles whose bounding sphere meets the capsule from start to target, widened
+  // by the tool's reach.
+  const Vec3 seg = target - start;
+  const double seg2 = seg.squaredNorm();
+  const double reach = 1.5 * R;
+  if (candidates) {
+    for (int t = 0; t < nt; ++t) {
+      const auto& f = m.surface[t];
+      const Vec3 &p0 = x[f[0]], &p1 = x[f[1]], &p2 = x[f[2]];
+      const Vec3 cen = (p0 + p1 + p2) / 3;
+      const double rad = std::sqrt(std::max(
+          {(p0 - cen).squaredNorm(), (p1 - cen).squaredNorm(), (p2 - cen).squaredNorm()}));
+      const double s = seg2 > 0 ? std::clamp((cen - start).dot(seg) / seg2, 0.0, 1.0) : 0.0;
+      const double lim = reach + rad;
+      if ((cen - (start + s * seg)).squaredNorm() < lim * lim) candidates->push_back(t);
+    }
+  }
+  const int* cand = candidates ? candidates->data() : nullptr;
+  const int nc = candidates ? static_cast<int>(candidates->size()) : nt;
+  // The first crossing of the reference point's move a -> b with the surface (parameter in
+  // [0, 1], or 1 when none).
+  auto first_crossing = [&](const Vec3& a, const Vec3& b) {
+    double tmin = 2;
+    for (int q = 0; q < nc; ++q) {
+      const auto& f = m.surface[cand ? cand[q] : q];
+      tmin = std::min(tmin, segment_triangle(a, b, x[f[0]], x[f[1]], x[f[2]]));
+    }
+    return tmin;
+  };
+  ToolContact c;
+  Vec3 at = start;
+  tool_contact(m, k, R, at, x, cand, nc, &c);
+  // One update sinks the tool by at most kProxyDepthRate R further into the surface it sees: a
+  // device that jumps deep is followed over a few ticks instead of striking the surface at once.
+  const double g_limit = std::min(g_stop, c.depth + kProxyDepthRate * R);
+  double phi = 0.5 * kvc * (at - target).squaredNorm() + c.energy;
+  for (int it = 0; it < 16; ++it) {
+    const Vec3 grad = kvc * (at - target) - c.force;
+    if (grad.norm() <= 1e-14 * (kvc * R)) break;
+    // Newton on the exact Hessian where it is positive definite, else on its positive part.
+    const Eigen::LDLT<Mat3> exact(kvc * Mat3::Identity() - c.stiffness);
+    Vec3 dx = exact.isPositive() && exact.info() == Eigen::Success
+                  ? Vec3(-exact.solve(grad))
+                  : Vec3(-(kvc * Mat3::Identity() - c.stiffness_psd).ldlt().solve(grad));
+    const double cross = first_crossing(at, at + dx);
+    if (cross <= 1) dx *= 0.9 * cross;
+    double alpha = 1;
+    ToolContact trial;
+    Vec3 next = at;
+    double phi_next = phi;
+    bool accepted = false;
+    for (int ls = 0; ls < 20; ++ls) {
+      next = at + alpha * dx;
+      tool_contact(m, k, R, next, x, cand, nc, &trial);
+      phi_next = 0.5 * kvc * (next - target).squaredNorm() + trial.energy;
+      const bool shallow = trial.depth < g_limit || trial.depth <= c.depth;
+      if (shallow && phi_next <= phi + 1e-4 * alpha * grad.dot(dx)) {
+        accepted = true;
+        break;
+      }
+      alpha *= 0.5;
+    }
+    if (!accepted) break;
+    const double moved = (next - at).norm();
+    at = next;
+    c = trial;
+    phi = phi_next;
+    if (moved <= 1e-12 * R) break;
+  }
+  p->proxy = at;
+  p->depth = c.depth;
+  p->contacts = c.faces;
+  p->force = kvc * (at - target);
+  // dF/dt = k_vc (k_vc I - K)^-1 K: the coupling in series with the layer, nodes held.
+  if (c.faces > 0) p->stiffness = kvc * (kvc * Mat3::Identity() - c.stiffness).inverse() * c.stiffness;
+  // The surface point the proxy rides on until the next update.
+  p->anchor = -1;
+  if (nc > 0) {
+    int t = -1;
+    Vec3 b;
+    const Vec3 near = nearest(at, cand, nc, &t, &b);
+    if (t >= 0 && (near - at).norm() < reach) {
+      p->anchor = t;
+      p->anchor_bary = b;
+      p->anchor_offset = tri_frame(t).inverse() * (at - near);
+    }
+  }
+}
+
+}  // namespace conica

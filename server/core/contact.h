@@ -1,0 +1,120 @@
+// Contact of rigid tools with the deformed surface of a body, through a proxy.
+//
+// The contact layer. A tool shape (a sphere of radius R around its centre, or a flat-ended
+// cylinder: a punch of radius R whose end face is centred at its pose and pushes along its axis)
+// overlaps the body's surface triangles at their current positions. A surface point y inside the
+// tool at penetration g(y) (sphere: g = R - |y - c|; punch: g = -(y - c).a within radius R of the
+// axis) carries the pressure p(g) of a contact layer, pushing it out of the tool (sphere: along
+// u = (y - c) / |y - c|; punch: along a). The layer stores the energy
+//     E = integral over the surface of psi(g) dA,   psi' = p,
+//     p(g) = k g / (1 - g / g_max)   for g <= 0.9 g_max,  then linear in g with the slope at 0.9 g_max,
+// a penalty of stiffness k (Pa/m) that turns into a barrier at g_max = kContactDepthFraction R, so
+// the tool never sinks deeper than that into the deformed surface at any force. The integral is
+// taken triangle by triangle, exactly in the geometry: each triangle's overlap with the tool
+// (the disc the sphere cuts from its plane, or the punch's footprint) is split into sub-triangles
+// from the disc's centre, integrated in polar-like coordinates with the rim as a boundary of the
+// domain, so the smooth integrand is resolved by Gauss points whatever the size of the patch
+// (a tool a tenth of the node spacing included) and the force is continuous as the tool slides
+// across edges and vertices. The force at each Gauss point is spread to the triangle's three
+// nodes by its barycentric weights. On a flat surface the total force does not depend on where
+// the tool sits relative to the nodes.
+//
+// Stiffness from the tissue. The default k is kContactStiffnessFactor E* / R, with E* = E / (1 -
+// nu^2) the body's contact modulus (the isotropic estimate of its springs and element terms,
+// contact_modulus()): the layer's penetration is then a fixed small fraction of the tissue's own
+// indentation (about 1 % at a Hertz depth of 0.1 R), the same for every mesh, step and integrator.
+//
+// The proxy (god object). Each tool has a proxy: the pose the tool takes in the simulation. The
+// client moves the device target t; the proxy minimises
+//     Phi(x) = k_vc / 2 |x - t|^2 + E(x)        (k_vc: the virtual coupling, N/m)
+// with the body's nodes held, by Newton iterations that never let the tool's reference point (the
+// sphere's centre, the punch's face centre) cross the deformed surface: every trial move is swept
+// from the proxy's last position against the surface triangles and stopped short of the first one
+// it would cross, however far the device jumps, and no update takes it more than
+// kProxyDepthRate R deeper into the surface than it was (a jump is followed over a few ticks). A
+// tool that appears inside the body has its proxy
+// placed on the nearest point of the surface. Between ticks the proxy rides on the surface point
+// nearest to it, so it is carried along as the surface deforms. The force on the device is the
+// coupling force F = k_vc (x - t) and its stiffness dF/dt = k_vc (k_vc I - K)^-1 K, with K =
+// dF_contact/dx the layer's stiffness at the proxy (nodes held): a spring in series with the
+// layer, never stiffer than k_vc. The body receives the layer's forces at the proxy.
+//
+// The default coupling is kCouplingFactor E* R: stiff against the tissue under the tool (whose
+// Hertz stiffness is 2 E* sqrt(R d)), so the proxy lags the device by about 1 % of the force at
+// the depths of a press.
+//
+// No allocation, I/O or logging here: scratch comes from the caller, sized once per model.
+#pragma once
+
+#include <vector>
+
+#include "core/model.h"
+
+namespace conica {
+
+// The barrier depth as a fraction of the tool radius.
+inline constexpr double kContactDepthFraction = 0.25;
+// Default layer stiffness k = kContactStiffnessFactor E* / R (Pa/m).
+inline constexpr double kContactStiffnessFactor = 100.0;
+// Default virtual coupling k_vc = kCouplingFactor E* R (N/m).
+inline constexpr double kCouplingFactor = 100.0;
+// A proxy update sinks the tool at most this fraction of its radius deeper into the surface.
+inline constexpr double kProxyDepthRate = 0.02;
+
+// The contact layer's pressure law.
+struct ContactLayer {
+  double k = 0;      // Pa/m, small-penetration stiffness
+  double g_max = 0;  // m, barrier depth
+
+  // Pressure p (Pa), its slope dp/dg (Pa/m) and the energy density psi (J/m^2) at penetration g.
+  void eval(double g, double* p, double* dp, double* psi) const;
+};
+
+// What a tool at a fixed pose feels from the surface with the nodes held.
+struct ToolContact {
+  double energy = 0;               // J
+  Vec3 force = Vec3::Zero();       // N, on the tool
+  Mat3 stiffness = Mat3::Zero();   // N/m, d force / d pose (exact)
+  Mat3 stiffness_psd = Mat3::Zero();  // N/m, its positive part: -sum p' n n^T (no curvature term)
+  double depth = 0;                // m, deepest penetration
+  int faces = 0;                   // triangles touched
+};
+
+// The layer of probe k (its stiffness and barrier for a tool of radius R, m).
+ContactLayer contact_layer(const Model& model, int probe, double radius);
+
+// The body's contact modulus E* = E / (1 - nu^2) (Pa) from its springs' isotropic network estimate
+// (E = sum(k_ax l0^2) / (6 V), nu = 1/4) and its element terms (bulk and shear moduli).
+double contact_modulus(const Model& model);
+
+// The tool of probe k (shape from the model, radius R > 0) posed at `pose` against the surface at
+// positions x, over the listed surface triangles (tris, n; tris == nullptr: all of them). Fills
+// `out`; when node_force is given adds the layer's force on every node to it, and when
+// node_block is given adds each node's lumped stiffness block sum w lambda p' n n^T (a positive
+// semi-definite bound on the layer's stiffness at that node, what implicit and semi-implicit
+// updates use) to node_block[i].
+void tool_contact(const Model& model, int probe, double radius, const Vec3& pose,
+                  const std::vector<Vec3>& x, const int* tris, int n, ToolContact* out,
+                  Vec3* node_force = nullptr, Mat3* node_block = nullptr);
+
+// The proxy stage for probe k: moves the proxy of *probe (from its last pose, carried by the
+// surface, toward probe->center) and fills probe->force, stiffness, depth, contacts, proxy and
+// anchor, with the nodes held at x. `candidates` (capacity: every surface triangle, so nothing is
+// allocated) is left holding the triangles within reach of the tool, what the step's contact
+// stage then evaluates; nullptr: every triangle is tested (slower, same result).
+void update_proxy(const Model& model, int k, const std::vector<Vec3>& x,
+                  std::vector<int>* candidates, ProbeState* probe);
+
+// The virtual coupling of probe k for a tool of radius R (N/m).
+double coupling_stiffness(const Model& model, int probe, double radius);
+
+// True when the tool of probe k (radius R) posed at `pose` overlaps surface triangle t (a
+// sphere: the triangle comes within R of its centre; a punch: within R of its axis, behind its
+// face).
+bool tool_touches(const Model& model, int probe, double radius, const Vec3& pose,
+                  const std::vector<Vec3>& x, int t);
+
+// True when point p lies inside the closed surface at positions x (winding number).
+bool inside_surface(const Model& model, const std::vector<Vec3>& x, const Vec3& p);
+
+}  // namespace conica
