@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -17,28 +18,37 @@
 namespace conica {
 namespace {
 
-// A 40 x 40 x 20 mm block, 5 mm lattice, clamped base, one tool (sphere or punch).
-Model Block(double radius, ToolShape shape = ToolShape::kSphere,
-            Integrator integ = Integrator::kSymplecticEuler) {
+// A lattice body on a clamped base with one surface-contact tool of `radius`.
+BodySpec LatticeWithTool(const Vec3& size, std::array<int, 3> cells, const SpringCard& card,
+                         double radius, ToolShape shape, Integrator integ, double mass_damping) {
   BodySpec b;
-  b.mesh = make_box_lattice(Vec3(0.04, 0.04, 0.02), {8, 8, 4});
+  b.mesh = make_box_lattice(size, cells);
   b.density = 1000;
-  SpringCard c;
-  c.conical = ConicalCard{5e7, 1e-3, 2e-3, 8e-3, 10e-3, 3};
-  c.stiffness_cap = 1e3;
-  b.groups.push_back({"tissue", c, kAllFamilies, {}, Vec3::Zero(), 10});
+  b.groups.push_back({"tissue", card, kAllFamilies, {}, Vec3::Zero(), 10});
   FixedSelector base;
   base.kind = FixedSelector::Kind::kPlane;
   b.fixed.push_back(base);
   b.options.integrator = integ;
-  b.options.mass_damping = 30;
+  b.options.mass_damping = mass_damping;
   ProbeSpec p;
   p.radius = radius;
   p.contact = ContactModel::kSurface;
   p.shape = shape;
   b.probes.push_back(p);
+  return b;
+}
+
+// A 40 x 40 x 20 mm block, 5 mm lattice, clamped base, one tool (sphere or punch).
+Model Block(double radius, ToolShape shape = ToolShape::kSphere,
+            Integrator integ = Integrator::kSymplecticEuler) {
+  SpringCard c;
+  c.conical = ConicalCard{5e7, 1e-3, 2e-3, 8e-3, 10e-3, 3};
+  c.stiffness_cap = 1e3;
   Model m;
-  EXPECT_EQ(build_model(b, &m), "");
+  EXPECT_EQ(build_model(LatticeWithTool(Vec3(0.04, 0.04, 0.02), {8, 8, 4}, c, radius, shape,
+                                        integ, 30),
+                        &m),
+            "");
   return m;
 }
 
@@ -246,25 +256,15 @@ namespace {
 // never passes through.
 TEST(SurfaceContactTest, SmallProbeAtAFaceCentreIsFeltFromTheStartAndHoldsSteady) {
   for (Integrator integ : {Integrator::kImplicitEuler, Integrator::kSymplecticEuler}) {
-    BodySpec b;
-    b.mesh = make_box_lattice(Vec3(0.07, 0.07, 0.04), {7, 7, 4});
-    b.density = 1000;
     SpringCard c;
     c.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};
     c.stiffness_cap = 20;
     c.damping = 0.02;
-    b.groups.push_back({"tissue", c, kAllFamilies, {}, Vec3::Zero(), 10});
-    FixedSelector base;
-    base.kind = FixedSelector::Kind::kPlane;
-    b.fixed.push_back(base);
-    b.options.integrator = integ;
-    b.options.mass_damping = 5;
+    BodySpec b = LatticeWithTool(Vec3(0.07, 0.07, 0.04), {7, 7, 4}, c, 0.0025,
+                                 ToolShape::kSphere, integ, 5);
     b.options.newton_iterations = 3;
     b.options.cg_iterations = 80;
-    ProbeSpec p;
-    p.radius = 0.0025;
-    p.contact = ContactModel::kSurface;
-    b.probes.push_back(p);
+    const ProbeSpec p = b.probes[0];
     Model m;
     ASSERT_EQ(build_model(b, &m), "");
     State s = make_state(m);
