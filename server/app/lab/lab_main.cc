@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
   conica::lab::register_viscoelastic(app, &run);
   conica::lab::register_tradeoff(app, &run);
   conica::lab::register_plan(app, &run);
+  conica::lab::register_contact(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
