@@ -469,6 +469,8 @@ std::string build_model(const BodySpec& spec, Model* out) {
       return which + "stiffness must be >= 0 Pa/m (0: from the tissue)";
     if (!(p.coupling >= 0) || !std::isfinite(p.coupling))
       return which + "coupling must be >= 0 N/m (0: from the tissue)";
+    if (!(p.friction >= 0) || !std::isfinite(p.friction))
+      return which + "friction must be >= 0 (a Coulomb coefficient)";
     if (!(p.axis.norm() > 0) || !p.axis.allFinite()) return which + "axis must be nonzero";
     p.axis.normalize();
     if (p.contact == ContactModel::kNodes && p.stiffness <= 0) p.stiffness = k_default;

@@ -385,6 +385,27 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
   }
 }
 
+void friction_forces(const Model& m, int k, const ProbeState& p, const std::vector<Vec3>& x,
+                     Vec3* node_force, Mat3* node_block) {
+  if (!(m.probes[k].friction > 0) || p.stick < 0 || !(p.friction_limit > 0)) return;
+  const auto& f = m.surface[p.stick];
+  Mat3 E;
+  E.col(0) = x[f[1]] - x[f[0]];
+  E.col(1) = x[f[2]] - x[f[0]];
+  E.col(2) = E.col(0).cross(E.col(1)).normalized();
+  const Vec3& b = p.stick_bary;
+  const Vec3 xs = b[0] * x[f[0]] + b[1] * x[f[1]] + b[2] * x[f[2]] + E * p.stick_offset;
+  const double R = p.radius > 0 ? p.radius : m.probes[k].radius;
+  const double kt = coupling_stiffness(m, k, R);
+  const Mat3 P = Mat3::Identity() - p.contact_normal * p.contact_normal.transpose();
+  Vec3 fb = kt * (P * (p.proxy - xs));
+  if (fb.norm() > p.friction_limit) fb *= p.friction_limit / fb.norm();
+  for (int a = 0; a < 3; ++a) {
+    node_force[f[a]] += b[a] * fb;
+    if (node_block) node_block[f[a]] += (b[a] * kt) * P;
+  }
+}
+
 bool inside_surface(const Model& m, const std::vector<Vec3>& x, const Vec3& p) {
   // Generalised winding number: the solid angles of the outward triangles seen from p sum to
   // 4 pi inside a closed surface and 0 outside (Van Oosterom and Strackee's formula).
@@ -409,6 +430,9 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
   if (!p->active) {
     p->proxy_placed = false;
     p->anchor = -1;
+    p->stick = -1;
+    p->friction_force.setZero();
+    p->friction_limit = 0;
     return;
   }
   const double R = probe_radius(m, k, *p);
@@ -454,15 +478,21 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
     return E;
   };
   if (!p->proxy_placed) {
+    // A tool just placed starts where it touches the surface at most: outside the body, backed
+    // off along the nearest face's normal until it no longer overlaps it, so that it sinks in at
+    // the depth rate like any other move instead of striking the surface at once.
     start = target;
-    if (nt > 0 && inside_surface(m, x, target)) {
+    if (nt > 0) {
       int t = 0;
       Vec3 b;
       const Vec3 at = nearest(target, nullptr, nt, &t, &b);
-      // The reference point just outside, the tool touching the surface (the sphere's centre
-      // one radius out, half the barrier depth in).
-      const double out = spec_is_sphere ? R - 0.5 * kContactDepthFraction * R : 1e-3 * R;
-      start = at + out * tri_normal(t);
+      const bool inside = inside_surface(m, x, target);
+      const double dist = (target - at).norm();
+      // Away from the surface: along the nearest face's normal from inside, else straight away
+      // from the nearest surface point.
+      const Vec3 away = inside || !(dist > 0) ? tri_normal(t) : Vec3((target - at) / dist);
+      const double clear = std::max(spec_is_sphere ? R : 0.0, 1e-3 * R);
+      if (inside || dist < clear) start = at + clear * away;
     }
     p->proxy_placed = true;
   } else if (p->anchor >= 0 && p->anchor < nt) {
@@ -507,45 +537,115 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
   // device that jumps deep is followed over a few ticks instead of striking the surface at once.
   const double g_limit = std::min(g_stop, c.depth + kProxyDepthRate * R);
   double phi = 0.5 * kvc * (at - target).squaredNorm() + c.energy;
-  for (int it = 0; it < 16; ++it) {
-    const Vec3 grad = kvc * (at - target) - c.force;
-    if (grad.norm() <= 1e-14 * (kvc * R)) break;
-    // Newton on the exact Hessian where it is positive definite, else on its positive part.
-    const Eigen::LDLT<Mat3> exact(kvc * Mat3::Identity() - c.stiffness);
-    Vec3 dx = exact.isPositive() && exact.info() == Eigen::Success
-                  ? Vec3(-exact.solve(grad))
-                  : Vec3(-(kvc * Mat3::Identity() - c.stiffness_psd).ldlt().solve(grad));
-    const double cross = first_crossing(at, at + dx);
-    if (cross <= 1) dx *= 0.9 * cross;
-    double alpha = 1;
-    ToolContact trial;
-    Vec3 next = at;
-    double phi_next = phi;
-    bool accepted = false;
-    for (int ls = 0; ls < 20; ++ls) {
-      next = at + alpha * dx;
-      tool_contact(m, k, R, next, x, cand, nc, &trial);
-      phi_next = 0.5 * kvc * (next - target).squaredNorm() + trial.energy;
-      const bool shallow = trial.depth < g_limit || trial.depth <= c.depth;
-      if (shallow && phi_next <= phi + 1e-4 * alpha * grad.dot(dx)) {
-        accepted = true;
-        break;
+  // Coulomb friction (probe friction mu > 0): a tangential spring of stiffness k_vc from the
+  // proxy to its stick point x_s (carried by the surface like the proxy), energy
+  // k_vc / 2 |P (x - x_s)|^2 with P the projector off the contact normal n; when its force would
+  // exceed mu times the normal force the stick point slides until it equals it.
+  const double mu = m.probes[k].friction;
+  const double kt = kvc;
+  Mat3 P = Mat3::Zero();  // zero: no friction term
+  Vec3 xs = Vec3::Zero();
+  auto friction_energy = [&](const Vec3& y) { return 0.5 * kt * (P * (y - xs)).squaredNorm(); };
+  // Newton on Phi from `at` (c: the layer at `at`).
+  auto newton = [&](Vec3& at, ToolContact& c) {
+    double phi = 0.5 * kvc * (at - target).squaredNorm() + c.energy + friction_energy(at);
+    for (int it = 0; it < 16; ++it) {
+      const Vec3 grad = kvc * (at - target) - c.force + kt * (P * (at - xs));
+      if (grad.norm() <= 1e-14 * (kvc * R)) break;
+      // Newton on the exact Hessian where it is positive definite, else on its positive part.
+      const Mat3 Hf = kt * P;
+      const Eigen::LDLT<Mat3> exact(kvc * Mat3::Identity() - c.stiffness + Hf);
+      Vec3 dx = exact.isPositive() && exact.info() == Eigen::Success
+                    ? Vec3(-exact.solve(grad))
+                    : Vec3(-(kvc * Mat3::Identity() - c.stiffness_psd + Hf).ldlt().solve(grad));
+      const double cross = first_crossing(at, at + dx);
+      if (cross <= 1) dx *= 0.9 * cross;
+      double alpha = 1;
+      ToolContact trial;
+      Vec3 next = at;
+      double phi_next = phi;
+      bool accepted = false;
+      for (int ls = 0; ls < 20; ++ls) {
+        next = at + alpha * dx;
+        tool_contact(m, k, R, next, x, cand, nc, &trial);
+        phi_next =
+            0.5 * kvc * (next - target).squaredNorm() + trial.energy + friction_energy(next);
+        const bool shallow = trial.depth < g_limit || trial.depth <= c.depth;
+        if (shallow && phi_next <= phi + 1e-4 * alpha * grad.dot(dx)) {
+          accepted = true;
+          break;
+        }
+        alpha *= 0.5;
       }
-      alpha *= 0.5;
+      if (!accepted) break;
+      const double moved = (next - at).norm();
+      at = next;
+      c = trial;
+      phi = phi_next;
+      if (moved <= 1e-12 * R) break;
     }
-    if (!accepted) break;
-    const double moved = (next - at).norm();
-    at = next;
-    c = trial;
-    phi = phi_next;
-    if (moved <= 1e-12 * R) break;
+  };
+  newton(at, c);
+  p->friction_force.setZero();
+  p->sliding = false;
+  bool sticking = false;
+  if (mu > 0 && c.faces > 0 && c.force.norm() > 0) {
+    const Vec3 n = c.force.normalized();
+    P = Mat3::Identity() - n * n.transpose();
+    // The stick point: carried from the last update, or where the tool first touched.
+    xs = at;
+    if (p->stick >= 0 && p->stick < nt) {
+      const auto& f = m.surface[p->stick];
+      const Vec3& b = p->stick_bary;
+      xs = b[0] * x[f[0]] + b[1] * x[f[1]] + b[2] * x[f[2]] + tri_frame(p->stick) * p->stick_offset;
+    }
+    newton(at, c);
+    Vec3 n_now = n;
+    double limit = mu * std::abs(c.force.dot(n));
+    if (kt * (P * (at - xs)).norm() > limit) {
+      // Slip: the stick point follows the tool so that the friction force is mu times the
+      // normal force, and the proxy is solved again against it, until the two agree.
+      p->sliding = true;
+      for (int pass = 0; pass < 4; ++pass) {
+        const Vec3 e = P * (at - xs);
+        if (!(e.norm() > 0)) break;
+        xs = at - (limit / kt) * e.normalized();
+        newton(at, c);
+        if (!(c.force.norm() > 0)) break;
+        n_now = c.force.normalized();
+        P = Mat3::Identity() - n_now * n_now.transpose();
+        limit = mu * std::abs(c.force.dot(n_now));
+        if (std::abs(kt * (P * (at - xs)).norm() - limit) <= 1e-3 * limit) break;
+      }
+    } else {
+      sticking = true;
+    }
+    p->friction_force = kt * (P * (at - xs));  // on the body, at the stick point
+    p->contact_normal = n_now;
+    p->friction_limit = limit;
+    // Store the stick point on the surface for the next update and the contact stage.
+    int t = -1;
+    Vec3 b;
+    const Vec3 near = nearest(xs, cand, nc, &t, &b);
+    p->stick = t;
+    if (t >= 0) {
+      p->stick_bary = b;
+      p->stick_offset = tri_frame(t).inverse() * (xs - near);
+    }
+  } else {
+    p->stick = -1;
+    p->friction_limit = 0;
   }
   p->proxy = at;
   p->depth = c.depth;
   p->contacts = c.faces;
   p->force = kvc * (at - target);
-  // dF/dt = k_vc (k_vc I - K)^-1 K: the coupling in series with the layer, nodes held.
-  if (c.faces > 0) p->stiffness = kvc * (kvc * Mat3::Identity() - c.stiffness).inverse() * c.stiffness;
+  // dF/dt = k_vc (k_vc I - K')^-1 K': the coupling in series with the layer (and, sticking, the
+  // friction spring: K' = K - k_t P), nodes held.
+  if (c.faces > 0) {
+    const Mat3 Kp = c.stiffness - (sticking ? Mat3(kt * P) : Mat3::Zero());
+    p->stiffness = kvc * (kvc * Mat3::Identity() - Kp).inverse() * Kp;
+  }
   // The surface point the proxy rides on until the next update.
   p->anchor = -1;
   if (nc > 0) {

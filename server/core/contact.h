@@ -114,6 +114,13 @@ double coupling_stiffness(const Model& model, int probe, double radius);
 bool tool_touches(const Model& model, int probe, double radius, const Vec3& pose,
                   const std::vector<Vec3>& x, int t);
 
+// The friction of probe k on the body (probe friction > 0, after update_proxy): the tangential
+// spring from the proxy to the stick point at positions x, at most mu times the normal force,
+// added to the stick triangle's nodes by its barycentric weights (and k_vc P lambda to their
+// blocks when node_block is given).
+void friction_forces(const Model& model, int k, const ProbeState& probe, const std::vector<Vec3>& x,
+                     Vec3* node_force, Mat3* node_block = nullptr);
+
 // True when point p lies inside the closed surface at positions x (winding number).
 bool inside_surface(const Model& model, const std::vector<Vec3>& x, const Vec3& p);
 

@@ -108,6 +108,7 @@ struct ProbeSpec {
   Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, punch: the direction it pushes along
   double coupling = 0;           // kSurface: N/m, virtual coupling device-proxy; 0: kCouplingFactor
                                  // E* R
+  double friction = 0;           // kSurface: Coulomb coefficient mu (>= 0), stick and slip
 };
 
 // A rigid half-space {x : n.x >= offset} that nodes cannot enter (compression plates).
@@ -185,6 +186,15 @@ struct ProbeState {
   Vec3 anchor_bary = Vec3::Zero(); // barycentric coordinates of the nearest point on it
   Vec3 anchor_offset = Vec3::Zero();  // proxy - that point in the triangle's frame (its two edge
                                       // vectors from node 0 and its unit normal)
+  // Friction (probe friction > 0): the stick point, carried like the anchor, and the tangential
+  // force the tool exerts on the body there.
+  int stick = -1;                  // surface triangle of the stick point (-1: none)
+  Vec3 stick_bary = Vec3::Zero();
+  Vec3 stick_offset = Vec3::Zero();
+  Vec3 friction_force = Vec3::Zero();  // N, on the body at the stick point
+  Vec3 contact_normal = Vec3::Zero();  // unit, the layer's force on the tool (friction only)
+  double friction_limit = 0;       // N, mu times the normal force
+  bool sliding = false;            // the last update slipped
 };
 
 struct PlaneState {

@@ -479,8 +479,11 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                  s.x, cand.data(), static_cast<int>(cand.size()), &c, ws.force.data(),
                  ws.contact_block.data());
     if (c.faces == 0) continue;
+    friction_forces(m, static_cast<int>(q), p, s.x, ws.force.data(), ws.contact_block.data());
     for (int t : cand)
       for (int i : m.surface[t]) list_contact_node(ws, i);
+    if (p.stick >= 0)
+      for (int i : m.surface[p.stick]) list_contact_node(ws, i);
   }
   for (size_t q = 0; q < m.planes.size(); ++q) {
     PlaneState& pl = s.planes[q];

@@ -241,10 +241,13 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
       return Error{where + "stiffness must be >= 0 Pa/m (0: from the tissue)"};
     if (!(p.coupling() >= 0) || !std::isfinite(p.coupling()))
       return Error{where + "coupling must be >= 0 N/m (0: from the tissue)"};
+    if (!(p.friction() >= 0) || !std::isfinite(p.friction()))
+      return Error{where + "friction must be >= 0 (a Coulomb coefficient)"};
     ProbeSpec spec;
     spec.radius = p.radius();
     spec.stiffness = p.stiffness();
     spec.coupling = p.coupling();
+    spec.friction = p.friction();
     switch (p.contact()) {
       case v1::NODES: spec.contact = ContactModel::kNodes; break;
       case v1::SURFACE: spec.contact = ContactModel::kSurface; break;
@@ -252,6 +255,8 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     }
     if (spec.contact == ContactModel::kNodes && p.shape() != v1::SPHERE)
       return Error{where + "shape PUNCH needs contact: SURFACE"};
+    if (spec.contact == ContactModel::kNodes && p.friction() > 0)
+      return Error{where + "friction needs contact: SURFACE"};
     switch (p.shape()) {
       case v1::SPHERE: spec.shape = ToolShape::kSphere; break;
       case v1::PUNCH: spec.shape = ToolShape::kPunch; break;
