@@ -59,8 +59,9 @@ struct Opts {
   bool hertz_on_scene = false;
   double sphere_radius_mm = 10;
   double punch_radius_mm = 5;
-  double hertz_speed_mm_s = 1;
-  double hertz_dt_ms = 10;
+  int hertz_steps = 20;
+  int hertz_settle = 5;
+  double hertz_dt_ms = 1000;
   int hertz_newton = 4;
   int hertz_cg = 200;
   double compression_strain = 0.01;
@@ -463,6 +464,12 @@ bool plate_modulus(const Opts& o, const BodySpec& block, double* E, double* nu, 
   pin2.axes = 2;
   spec.fixed = {base, pin, pin2};
   ensure_top_plate(&spec);
+  // Long steps: each implicit step is Newton on the static equilibrium (as the homogenised cell).
+  spec.options.dt = 1.0;
+  spec.options.newton_iterations = 2;
+  spec.options.cg_iterations = 400;
+  spec.options.cg_tolerance = 1e-12;
+  spec.options.max_speed = 1e9;
   Model m;
   if (std::string e = build_model(spec, &m); !e.empty()) {
     *err = "compression model: " + e;
@@ -473,7 +480,7 @@ bool plate_modulus(const Opts& o, const BodySpec& block, double* E, double* nu, 
   const double travel = o.compression_strain * h;
   State s = make_state(m);
   Workspace ws(m);
-  const int ramp = 20, settle = 60;
+  const int ramp = 10, settle = 40;
   for (int k = 1; k <= ramp + settle; ++k) {
     s.planes[0].offset = -hi.z() + travel * std::min(1.0, static_cast<double>(k) / ramp);
     step(m, s, ws);
@@ -563,14 +570,15 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
   }
   std::printf("\n### hertz\n\n");
   std::printf("Card of %s; implicit Euler, dt %.3g ms, %d Newton x %d CG (tolerance 1e-10), no "
-              "mass damping; press at %.3g mm/s. Errors over proxy depth d in [0.02 R, 0.1 R], R = "
+              "mass damping (each step close to a static solve); press to 0.1 R in %d equal depth levels, "
+              "each held %d more steps and read at its last. Errors over proxy depth d in [0.02 R, 0.1 R], R = "
               "%.3g mm (sphere and punch alike).\n\n",
-              sc.name.c_str(), o.hertz_dt_ms, o.hertz_newton, o.hertz_cg, o.hertz_speed_mm_s,
+              sc.name.c_str(), o.hertz_dt_ms, o.hertz_newton, o.hertz_cg, o.hertz_steps, o.hertz_settle,
               o.sphere_radius_mm);
-  std::printf("| block | spacing_mm | nodes | E (Pa) | nu | E* (Pa) | model E* (Pa) | tool | "
-              "contact radius / thickness | mean err %% | max err %% | err at 0.1 R %% | max pen/R "
+  std::printf("| block | spacing_mm | nodes | E (Pa) | cell E (Pa) | nu | E* (Pa) | model E* (Pa) | tool | "
+              "contact radius / thickness | max proxy depth_mm | max faces | mean err %% | max err %% | err at 0.1 R %% | max pen/R "
               "| rollbacks | wall s |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   std::fflush(stdout);
   const double R = o.sphere_radius_mm * 1e-3, a = o.punch_radius_mm * 1e-3;
   for (const Block& b : blocks) {
@@ -581,6 +589,14 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
       return 1;
     }
     const double Es = E / (1 - nu * nu);
+    // Cross-check: the homogenised (affine) cell's uniaxial modulus at the same strain.
+    double E_cell = 0;
+    {
+      Model cell;
+      if (make_uniaxial_cell(b.spec.groups, b.spec.mapping, b.spacing, &cell, b.spec.bulk_modulus,
+                             b.spec.shear_modulus).empty())
+        E_cell = cell_stress_curve(cell, {o.compression_strain}).front() / o.compression_strain;
+    }
     for (int tool = 0; tool < 2; ++tool) {
       const bool sphere = tool == 0;
       const double r = sphere ? R : a;
@@ -594,14 +610,17 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
       double zt, zb;
       surface_span(m, t.cx, t.cy, &zt, &zb);
       const double ref = zt + (sphere ? r : 0);
-      const double depth = 0.1 * R, speed = o.hertz_speed_mm_s * 1e-3, dt = m.options.dt;
-      const long ticks = std::max(1L, std::lround(depth / (speed * dt)));
-      const Run run = drive(m, ticks + 1, ref, [&](long k) {
-        return Vec3(t.cx, t.cy, ref - depth * std::min(1.0, static_cast<double>(k) / ticks));
+      const double depth = 0.1 * R;
+      const long levels = o.hertz_steps, per = o.hertz_settle + 1;
+      const Run run = drive(m, levels * per, ref, [&](long k) {
+        return Vec3(t.cx, t.cy, ref - depth * static_cast<double>(k / per + 1) / levels);
       });
-      double sum = 0, worst = 0, at_end = 0;
-      int n = 0;
-      for (const Sample& q : run.s) {
+      double sum = 0, worst = 0, at_end = 0, max_proxy = 0;
+      int n = 0, max_contacts = 0;
+      for (const Sample& q : run.s)
+        max_proxy = std::max(max_proxy, q.proxy_depth), max_contacts = std::max(max_contacts, q.contacts);
+      for (long k = per - 1; k < static_cast<long>(run.s.size()); k += per) {
+        const Sample& q = run.s[k];
         const double d = q.proxy_depth;
         if (d < 0.02 * R || d > 0.1 * R * (1 + 1e-9)) continue;
         const double th = sphere ? 4.0 / 3.0 * Es * std::sqrt(R) * std::pow(d, 1.5) : 2 * a * Es * d;
@@ -612,12 +631,13 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
         ++n;
       }
       const double contact_radius = sphere ? std::sqrt(R * 0.1 * R) : a;
-      std::printf("| %s | %.3g | %d | %.5g | %.4f | %.5g | %.5g | %s | %.3f | %s | %s | %s | %.3f "
-                  "| %llu | %.1f |\n",
-                  b.label.c_str(), b.spacing * 1e3, m.num_nodes(), E, nu, Es, m.contact_modulus,
+      std::printf("| %s | %.3g | %d | %.5g | %.5g | %.4f | %.5g | %.5g | %s | %.3f | %.3f | %d | %s | "
+                  "%s | %s | %.3f | %llu | %.1f |\n",
+                  b.label.c_str(), b.spacing * 1e3, m.num_nodes(), E, E_cell, nu, Es,
+                  m.contact_modulus,
                   sphere ? fmt("sphere R %.3g mm", r * 1e3).c_str()
                          : fmt("punch a %.3g mm", r * 1e3).c_str(),
-                  contact_radius / b.thickness, n ? fmt("%.2f", 100 * sum / n).c_str() : "n/a",
+                  contact_radius / b.thickness, max_proxy * 1e3, max_contacts, n ? fmt("%.2f", 100 * sum / n).c_str() : "n/a",
                   n ? fmt("%.2f", 100 * worst).c_str() : "n/a",
                   n ? fmt("%+.2f", 100 * at_end).c_str() : "n/a", run.max_penetration / r,
                   static_cast<unsigned long long>(run.rollbacks), run.seconds);
@@ -757,8 +777,8 @@ int run_hold(const Opts& o, const std::vector<Scene>& scenes) {
 int run_speed_check(const Opts& o, const std::vector<Scene>& scenes) {
   const Scene& sc = scenes.front();
   std::printf("\n### quasi-static check\n\n");
-  std::printf("| case | speed_mm_s | F at 25 / 50 / 75 / 100 %% of the depth (N) | max |diff| vs "
-              "half speed %% |\n|---|---|---|---|\n");
+  std::printf("| case | speed_mm_s | F at 12.5, 25, ..., 100 %% of the depth (N) | |diff| vs half "
+              "speed at each %% | max %% |\n|---|---|---|---|---|\n");
   Model pm;
   if (std::string e = with_tool(sc.spec, 1e-3, ToolShape::kSphere, &pm); !e.empty()) {
     std::fprintf(stderr, "%s: --scene %s: %s\n", kCmd, sc.path.c_str(), e.c_str());
@@ -775,7 +795,8 @@ int run_speed_check(const Opts& o, const std::vector<Scene>& scenes) {
   for (int k = 0; k < 2; ++k) {
     const double v = o.speed_mm_s * 1e-3 / (k + 1);
     const PressResult pr = press(m, top.node, zt + R, R, v, depth, 0);
-    for (double q : {0.25, 0.5, 0.75, 1.0}) {
+    for (int qi = 1; qi <= 8; ++qi) {
+      const double q = qi / 8.0;
       // Force at the tick whose tool depth is nearest q x depth.
       double best = 1e9, f = 0;
       for (const Sample& s : pr.run.s)
@@ -784,12 +805,17 @@ int run_speed_check(const Opts& o, const std::vector<Scene>& scenes) {
     }
   }
   double worst = 0;
-  for (size_t i = 0; i < at[0].size(); ++i)
-    worst = std::max(worst, std::abs(at[0][i] - at[1][i]) / std::abs(at[1][i]));
+  std::string diffs, forces[2];
+  for (size_t i = 0; i < at[0].size(); ++i) {
+    const double d = std::abs(at[0][i] - at[1][i]) / std::abs(at[1][i]);
+    worst = std::max(worst, d);
+    diffs += (i ? ", " : "") + fmt("%.2g", 100 * d);
+    for (int k = 0; k < 2; ++k) forces[k] += (i ? ", " : "") + fmt("%.4g", at[k][i]);
+  }
   for (int k = 0; k < 2; ++k)
-    std::printf("| press %s, R %.3g x s, node | %.3g | %.4g / %.4g / %.4g / %.4g | %s |\n",
-                sc.name.c_str(), factor, o.speed_mm_s / (k + 1), at[k][0], at[k][1], at[k][2],
-                at[k][3], k == 0 ? fmt("%.3g", 100 * worst).c_str() : "");
+    std::printf("| press %s, R %.3g x s, node | %.3g | %s | %s | %s |\n", sc.name.c_str(), factor,
+                o.speed_mm_s / (k + 1), forces[k].c_str(), k == 0 ? diffs.c_str() : "",
+                k == 0 ? fmt("%.3g", 100 * worst).c_str() : "");
   std::fflush(stdout);
   return 0;
 }
@@ -812,7 +838,8 @@ bool valid(const Opts& o, std::string* why) {
     return *why = "--cells: three counts >= 1", false;
   if (!(o.sphere_radius_mm > 0)) return *why = "--sphere-radius-mm must be > 0", false;
   if (!(o.punch_radius_mm > 0)) return *why = "--punch-radius-mm must be > 0", false;
-  if (!(o.hertz_speed_mm_s > 0)) return *why = "--hertz-speed-mm-s must be > 0", false;
+  if (o.hertz_steps < 5) return *why = "--hertz-steps must be >= 5", false;
+  if (o.hertz_settle < 0) return *why = "--hertz-settle must be >= 0", false;
   if (!(o.hertz_dt_ms > 0)) return *why = "--hertz-dt-ms must be > 0", false;
   if (o.hertz_newton < 1 || o.hertz_cg < 1) return *why = "--hertz-newton and --hertz-cg must be >= 1", false;
   if (!(o.compression_strain > 0 && o.compression_strain < 0.2))
@@ -858,7 +885,9 @@ void register_contact(CLI::App& app, Runner* run) {
                 "hertz on the scene's own body instead of a block");
   cmd->add_option("--sphere-radius-mm", o->sphere_radius_mm, "hertz sphere R")->capture_default_str();
   cmd->add_option("--punch-radius-mm", o->punch_radius_mm, "hertz punch radius")->capture_default_str();
-  cmd->add_option("--hertz-speed-mm-s", o->hertz_speed_mm_s, "hertz press speed")
+  cmd->add_option("--hertz-steps", o->hertz_steps, "hertz: depth levels of the press to 0.1 R")
+      ->capture_default_str();
+  cmd->add_option("--hertz-settle", o->hertz_settle, "hertz: steps held at each level before it is read")
       ->capture_default_str();
   cmd->add_option("--hertz-dt-ms", o->hertz_dt_ms, "hertz implicit step")->capture_default_str();
   cmd->add_option("--hertz-newton", o->hertz_newton, "hertz Newton iterations per step")

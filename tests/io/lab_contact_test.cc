@@ -1,0 +1,73 @@
+// conica-lab contact as a user runs it: a short press on the paper cube, and bad options.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <string>
+
+namespace {
+
+using ::testing::HasSubstr;
+
+struct LabRun {
+  int status = -1;     // exit status
+  std::string output;  // stdout and stderr
+};
+
+LabRun run_lab(const std::string& args) {
+  LabRun r;
+  const std::string cmd = std::string("'") + CONICA_LAB_BIN + "' " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  std::size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+  const int w = pclose(p);
+  r.status = WIFEXITED(w) ? WEXITSTATUS(w) : -1;
+  return r;
+}
+
+const std::string kScene = std::string("'") + CONICA_SOURCE_DIR "/configs/paper-cube.pbtxt'";
+
+// A half-spacing sphere pressed to a tenth of the cube's height at the top node and a face
+// centre: felt from the first 0.1 mm on at every tick (column "F>0 from 0.1 mm").
+TEST(LabContact, ShortPressIsFeltFromTheStart) {
+  const LabRun r = run_lab("contact --scene " + kScene +
+                           " --experiment press --radius-factors 0.5 --max-depth-fraction 0.1 "
+                           "--hold-s 0.5");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("| paper-cube | 5 | 0.5 | node | "));
+  EXPECT_THAT(r.output, HasSubstr("| paper-cube | 5 | 0.5 | quad centre | "));
+  // Both rows: force > 0 at every tick once the tool is 0.1 mm into the rest surface.
+  size_t rows = 0;
+  for (size_t at = r.output.find("| paper-cube |"); at != std::string::npos;
+       at = r.output.find("| paper-cube |", at + 1)) {
+    const std::string row = r.output.substr(at, r.output.find('\n', at) - at);
+    // Column 6: F>0 from 0.1 mm.
+    size_t col = 0, pos = 0;
+    for (int bar = 0; bar < 6; ++bar) pos = row.find('|', pos) + 1;
+    col = row.find('|', pos);
+    EXPECT_EQ(row.substr(pos, col - pos), " yes ") << row;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 2u) << r.output;
+}
+
+TEST(LabContact, BadOptionsNameTheOptionAndExitTwo) {
+  LabRun r = run_lab("contact --scene " + kScene + " --experiment squash");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("--experiment: unknown experiment 'squash'"));
+  r = run_lab("contact --scene " + kScene + " --experiment press --radius-factors 0.5,-1");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("--radius-factors"));
+  r = run_lab("contact --scene /nonexistent/scene.pbtxt --experiment press");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("--scene /nonexistent/scene.pbtxt"));
+  r = run_lab("contact --experiment press");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("--scene"));
+}
+
+}  // namespace
