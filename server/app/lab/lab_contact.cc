@@ -234,11 +234,12 @@ struct Run {
 };
 
 // Builds spec with one surface-contact tool (replacing the scene's probes).
-std::string with_tool(BodySpec spec, double radius, ToolShape shape, Model* m) {
+std::string with_tool(BodySpec spec, double radius, ToolShape shape, Model* m,
+                      ContactModel contact = ContactModel::kSurface) {
   ProbeSpec p;
   if (!spec.probes.empty()) p = spec.probes[0];
   p.radius = radius;
-  p.contact = ContactModel::kSurface;
+  p.contact = contact;
   p.shape = shape;
   p.axis = -Vec3::UnitZ();
   p.stiffness = 0;
@@ -313,9 +314,12 @@ struct PressResult {
   Run run;
   double first_force = -1;   // m of tool depth
   bool positive = true;      // force > 0 at every tick once 0.1 mm in
-  int drops = 0;             // press ticks with force below 0.99 x its running maximum
-  double max_drop = 0;       // largest (running max - force) / running max
+  int drops = 0;             // press ticks whose force fell by more than 1 % of its running
+                             // maximum since the tick before
+  double max_drop = 0;       // largest such fall / running max
   double last_drop = -1;     // m, tool depth of the last such tick
+  double shortfall = 0;      // largest (running max - force) / running max over the press
+  double shortfall_at = -1;  // m, tool depth where it is reached
   double hold_mean = 0, hold_rel_sd = 0;
   double end_force = 0;
 };
@@ -330,7 +334,7 @@ PressResult press(const Model& m, const Vec3& at, double ref, double R, double s
     const double d = depth * std::min(1.0, static_cast<double>(k) / press_ticks);
     return Vec3(at.x(), at.y(), ref - d);
   });
-  double run_max = 0;
+  double run_max = 0, prev = 0;
   std::vector<double> hold;
   for (long k = 0; k < static_cast<long>(pr.run.s.size()); ++k) {
     const Sample& q = pr.run.s[k];
@@ -339,11 +343,16 @@ PressResult press(const Model& m, const Vec3& at, double ref, double R, double s
     if (q.tool_depth > 1e-4 && !(f > 0)) pr.positive = false;
     if (k <= press_ticks) {
       run_max = std::max(run_max, f);
-      if (q.tool_depth > 1e-4 && f < 0.99 * run_max) {
+      if (q.tool_depth > 1e-4 && prev - f > 0.01 * run_max) {
         ++pr.drops;
-        pr.max_drop = std::max(pr.max_drop, (run_max - f) / run_max);
+        pr.max_drop = std::max(pr.max_drop, (prev - f) / run_max);
         pr.last_drop = q.tool_depth;
       }
+      if (q.tool_depth > 1e-4 && run_max > 0 && (run_max - f) / run_max > pr.shortfall) {
+        pr.shortfall = (run_max - f) / run_max;
+        pr.shortfall_at = q.tool_depth;
+      }
+      prev = f;
       if (k == press_ticks) pr.end_force = f;
     } else if (k > press_ticks + hold_ticks / 2) {
       hold.push_back(f);
@@ -357,9 +366,9 @@ PressResult press(const Model& m, const Vec3& at, double ref, double R, double s
 int run_press(const Opts& o, const std::vector<Scene>& scenes) {
   std::printf("\n### press\n\n");
   std::printf("| scene | R_mm | R/s | position | first force at_mm | F>0 from 0.1 mm | drops >1 %% "
-              "| max drop %% | last drop at_mm | F at max depth (N) | max pen/R | rollbacks | hold F (N) | hold "
+              "| max drop %% | last drop at_mm | max shortfall %% | at_mm | F at max depth (N) | max pen/R | rollbacks | hold F (N) | hold "
               "std/mean %% | wall s |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   std::fflush(stdout);
   for (const Scene& sc : scenes) {
     Model probe_model;
@@ -392,12 +401,15 @@ int run_press(const Opts& o, const std::vector<Scene>& scenes) {
         const PressResult pr =
             press(m, at, zt + R, R, o.speed_mm_s * 1e-3, depth, o.hold_s);
         const std::string posname = pos == "node" ? "node" : (top.quad ? "quad centre" : "tri centroid");
-        std::printf("| %s | %.3g | %.3g | %s | %s | %s | %d | %.3g | %s | %.4g | %.3f | %llu | %.4g | "
+        std::printf("| %s | %.3g | %.3g | %s | %s | %s | %d | %.3g | %s | %.3g | %s | %.4g | %.3f | %llu | %.4g | "
                     "%.3g | %.1f |\n",
                     sc.name.c_str(), R * 1e3, factor, posname.c_str(),
                     pr.first_force < 0 ? "none" : fmt("%.3f", pr.first_force * 1e3).c_str(),
                     pr.positive ? "yes" : "NO", pr.drops, 100 * pr.max_drop,
-                    pr.last_drop < 0 ? "-" : fmt("%.3f", pr.last_drop * 1e3).c_str(), pr.end_force,
+                    pr.last_drop < 0 ? "-" : fmt("%.3f", pr.last_drop * 1e3).c_str(),
+                    100 * pr.shortfall,
+                    pr.shortfall_at < 0 ? "-" : fmt("%.2f", pr.shortfall_at * 1e3).c_str(),
+                    pr.end_force,
                     pr.run.max_penetration / R,
                     static_cast<unsigned long long>(pr.run.rollbacks), pr.hold_mean,
                     100 * pr.hold_rel_sd, pr.run.seconds);
@@ -733,12 +745,18 @@ int run_hold(const Opts& o, const std::vector<Scene>& scenes) {
   std::fflush(stdout);
   const double R = o.hold_radius_mm * 1e-3, depth = o.hold_depth_mm * 1e-3;
   for (const Scene& sc : scenes) {
-    for (Integrator integ : {Integrator::kSymplecticEuler, Integrator::kExplicitEuler,
-                             Integrator::kImplicitEuler}) {
+    // The last row: explicit Euler with the node contact, a control for the integrator itself.
+    for (int row = 0; row < 4; ++row) {
+      const Integrator integ = row == 0   ? Integrator::kSymplecticEuler
+                               : row == 2 ? Integrator::kImplicitEuler
+                                          : Integrator::kExplicitEuler;
+      const bool nodes = row == 3;
       BodySpec spec = sc.spec;
       spec.options.integrator = integ;
       Model m;
-      if (std::string e = with_tool(spec, R, ToolShape::kSphere, &m); !e.empty()) {
+      if (std::string e = with_tool(spec, R, ToolShape::kSphere, &m,
+                                    nodes ? ContactModel::kNodes : ContactModel::kSurface);
+          !e.empty()) {
         std::fprintf(stderr, "%s: --scene %s: %s\n", kCmd, sc.path.c_str(), e.c_str());
         return 2;
       }
@@ -758,12 +776,13 @@ int run_hold(const Opts& o, const std::vector<Scene>& scenes) {
         f.push_back(run.s[k].f.z());
       double mean, rel;
       mean_sd(f, &mean, &rel);
-      std::printf("| %s | %s | %.4g | %.4g | %.3g | %.3f | %llu | %.1f |\n", sc.name.c_str(),
-                  integrator_name(integ), run.s[tp].f.z(), mean, 100 * rel,
+      std::printf("| %s | %s%s | %.4g | %.4g | %.3g | %.3f | %llu | %.1f |\n", sc.name.c_str(),
+                  integrator_name(integ), nodes ? " (control: NODES contact)" : "", run.s[tp].f.z(), mean, 100 * rel,
                   run.max_penetration / R, static_cast<unsigned long long>(run.rollbacks),
                   run.seconds);
       std::fflush(stdout);
-      if (!write_csv(o, std::string("hold-") + sc.name + "-" + integrator_name(integ), run))
+      if (!write_csv(o, std::string("hold-") + sc.name + "-" + integrator_name(integ) +
+                            (nodes ? "-nodes" : ""), run))
         return 1;
     }
   }
