@@ -14,12 +14,17 @@ mkdir -p out/contact
 start=$(date +%s)
 "$build/bin/${cmd[0]}" "${cmd[@]:1}" >out/contact/tables.md
 secs=$(( $(date +%s) - start ))
+# The source the binary was built from: the commit, and whether server/core had local changes.
+rev="${CONICA_COMMIT:-$(git rev-parse --short HEAD 2>/dev/null || echo unknown)}"
+if git rev-parse --git-dir >/dev/null 2>&1 && ! git diff --quiet HEAD -- server/core 2>/dev/null; then
+  rev="$rev with local changes in server/core"
+fi
 {
   cat <<HEAD
 # Surface contact: measurements
 
-Written by \`scripts/contact_measurements.sh\`: \`${cmd[*]}\` (Release build, 2-core machine,
-${secs} s for the whole suite). Scenes: \`configs/paper-cube.pbtxt\`, \`configs/paper-cube-hooke.pbtxt\`,
+Written by \`scripts/contact_measurements.sh\`: \`${cmd[*]}\` (Release build of ${rev},
+2-core machine, ${secs} s for the whole suite). Scenes: \`configs/paper-cube.pbtxt\`, \`configs/paper-cube-hooke.pbtxt\`,
 \`configs/anisotropic-block.pbtxt\` for press and drag; the paper cube for hold and the quasi-static
 check; the paper cube's card for the Hertz block. Every probe uses \`contact: SURFACE\`
 (\`core/contact.h\`). Forces are on the device, N, along +z (pushing the tool out); depths from the rest
