@@ -796,8 +796,8 @@ int run_hold(const Opts& o, const std::vector<Scene>& scenes) {
 int run_speed_check(const Opts& o, const std::vector<Scene>& scenes) {
   const Scene& sc = scenes.front();
   std::printf("\n### quasi-static check\n\n");
-  std::printf("| case | speed_mm_s | F at 12.5, 25, ..., 100 %% of the depth (N) | |diff| vs half "
-              "speed at each %% | max %% |\n|---|---|---|---|---|\n");
+  std::printf("| case | speed_mm_s | F at 12.5, 25, ..., 100 %% of the depth (N) | abs. difference vs "
+              "half speed at each, %% | max %% |\n|---|---|---|---|---|\n");
   Model pm;
   if (std::string e = with_tool(sc.spec, 1e-3, ToolShape::kSphere, &pm); !e.empty()) {
     std::fprintf(stderr, "%s: --scene %s: %s\n", kCmd, sc.path.c_str(), e.c_str());
