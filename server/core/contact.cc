@@ -16,6 +16,14 @@ constexpr double kGaussX[kGauss] = {0.0694318442029737, 0.3300094782075719, 0.66
                                     0.9305681557970263};
 constexpr double kGaussW[kGauss] = {0.1739274225687269, 0.3260725774312731, 0.3260725774312731,
                                     0.1739274225687269};
+// Dunavant's degree-4 rule on a triangle: barycentric points and weights (sum 1).
+constexpr double kTriA = 0.445948490915965, kTriB = 0.091576213509771;
+constexpr double kTriPoints[6][3] = {{1 - 2 * kTriA, kTriA, kTriA}, {kTriA, 1 - 2 * kTriA, kTriA},
+                                     {kTriA, kTriA, 1 - 2 * kTriA}, {1 - 2 * kTriB, kTriB, kTriB},
+                                     {kTriB, 1 - 2 * kTriB, kTriB}, {kTriB, kTriB, 1 - 2 * kTriB}};
+constexpr double kTriW[6] = {0.223381589678011, 0.223381589678011, 0.223381589678011,
+                             0.109951743655322, 0.109951743655322, 0.109951743655322};
+
 // Accumulates the layer's integrand at Gauss points of one triangle.
 struct Accumulator {
   const ContactLayer& layer;
@@ -91,6 +99,12 @@ Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3
 template <typename Add>
 void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&& add) {
   const double a2 = a * a;
+  if (Q[0].squaredNorm() <= a2 && Q[1].squaredNorm() <= a2 && Q[2].squaredNorm() <= a2) {
+    // The whole triangle lies in the disc, where the integrand is smooth: one rule on it.
+    const double area = 0.5 * (Q[1] - Q[0]).cross(Q[2] - Q[0]).norm() * scale;
+    for (int k = 0; k < 6; ++k) add(kTriPoints[k], area * kTriW[k]);
+    return;
+  }
   Vec3 bo;
   const Vec3 O = closest_on_triangle(Vec3::Zero(), Q[0], Q[1], Q[2], &bo);
   if (!(O.squaredNorm() < a2)) return;  // the disc misses the triangle
@@ -520,13 +534,15 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
   }
   const int* cand = candidates ? candidates->data() : nullptr;
   const int nc = candidates ? static_cast<int>(candidates->size()) : nt;
-  // The first crossing of the reference point's move a -> b with the surface (parameter in
-  // [0, 1], or 1 when none).
+  // The first crossing of the reference point's move with the pose a -> b with the surface
+  // (parameter in [0, 1], or 2 when none). The reference point stays out of the body: the
+  // sphere's centre; for a punch, the point one radius behind its face, inside the punch.
+  const Vec3 ref = spec_is_sphere ? Vec3::Zero() : Vec3(-R * m.probes[k].axis);
   auto first_crossing = [&](const Vec3& a, const Vec3& b) {
     double tmin = 2;
     for (int q = 0; q < nc; ++q) {
       const auto& f = m.surface[cand ? cand[q] : q];
-      tmin = std::min(tmin, segment_triangle(a, b, x[f[0]], x[f[1]], x[f[2]]));
+      tmin = std::min(tmin, segment_triangle(a + ref, b + ref, x[f[0]], x[f[1]], x[f[2]]));
     }
     return tmin;
   };
@@ -558,6 +574,8 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
       Vec3 dx = exact.isPositive() && exact.info() == Eigen::Success
                     ? Vec3(-exact.solve(grad))
                     : Vec3(-(kvc * Mat3::Identity() - c.stiffness_psd + Hf).ldlt().solve(grad));
+      // Converged to round-off: the layer's Gauss sums do not resolve a smaller step or decrease.
+      if (dx.norm() <= 1e-10 * R || -grad.dot(dx) <= 1e-13 * std::abs(phi)) break;
       const double cross = first_crossing(at, at + dx);
       if (cross <= 1) dx *= 0.9 * cross;
       double alpha = 1;
