@@ -1,6 +1,8 @@
 // conica-lab contact as a user runs it: a short press on the paper cube, and bad options.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include "lab_run.h"
 #include <sys/wait.h>
 
 #include <array>
@@ -11,23 +13,8 @@ namespace {
 
 using ::testing::HasSubstr;
 
-struct LabRun {
-  int status = -1;     // exit status
-  std::string output;  // stdout and stderr
-};
-
-LabRun run_lab(const std::string& args) {
-  LabRun r;
-  const std::string cmd = std::string("'") + CONICA_LAB_BIN + "' " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  const int w = pclose(p);
-  r.status = WIFEXITED(w) ? WEXITSTATUS(w) : -1;
-  return r;
-}
+using conica::testing::LabRun;
+using conica::testing::run_lab;
 
 const std::string kScene = std::string("'") + CONICA_SOURCE_DIR "/configs/paper-cube.pbtxt'";
 
