@@ -24,7 +24,15 @@ constexpr double kTriPoints[6][3] = {{1 - 2 * kTriA, kTriA, kTriA}, {kTriA, 1 - 
 constexpr double kTriW[6] = {0.223381589678011, 0.223381589678011, 0.223381589678011,
                              0.109951743655322, 0.109951743655322, 0.109951743655322};
 
-// Accumulates the layer's integrand at Gauss points of one triangle.
+// Symmetric 3 x 3 from its six entries xx yy zz xy xz yz.
+Mat3 symmetric(const double s[6]) {
+  Mat3 m;
+  m << s[0], s[3], s[4], s[3], s[1], s[5], s[4], s[5], s[2];
+  return m;
+}
+
+// Accumulates the layer's integrand at Gauss points of one triangle, in sums local to it that
+// flush() adds to the tool's totals and the nodes once per triangle.
 struct Accumulator {
   const ContactLayer& layer;
   const Vec3& c;
@@ -33,26 +41,53 @@ struct Accumulator {
   Vec3* f[3];    // node forces (null: not wanted)
   Mat3* b[3];    // node blocks (null: not wanted)
   bool touched = false;
+  double energy = 0, s0 = 0, depth = 0;
+  Vec3 force = Vec3::Zero();
+  double S1[6] = {}, S2[6] = {};  // sum w (-p' - p / r) u u^T and sum w p' u u^T
+  Vec3 fl[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+  double bl[3][6] = {};
 
-  // Point y of barycentric coordinates l, area weight w (m^2, may be negative: signed pieces).
+  // Point y of barycentric coordinates l, area weight w (m^2).
   void add(const Vec3& y, const double l[3], double w) {
     const Vec3 d = y - c;
-    const double r = d.norm();
+    const double r2 = d.squaredNorm();
+    if (!(r2 < R * R) || !(r2 > 0)) return;
+    const double r = std::sqrt(r2);
     const double g = R - r;
-    if (!(g > 0) || !(r > 0)) return;
     double p, dp, psi;
     layer.eval(g, &p, &dp, &psi);
     const Vec3 u = d / r;
-    const Mat3 uu = u * u.transpose();
-    out->energy += w * psi;
-    out->force -= w * p * u;
-    out->stiffness += w * (-dp * uu + (p / r) * (Mat3::Identity() - uu));
-    out->stiffness_psd -= w * dp * uu;
-    out->depth = std::max(out->depth, g);
+    const double uu[6] = {u.x() * u.x(), u.y() * u.y(), u.z() * u.z(),
+                          u.x() * u.y(), u.x() * u.z(), u.y() * u.z()};
+    energy += w * psi;
+    force -= (w * p) * u;
+    s0 += w * p / r;
+    const double c1 = w * (-dp - p / r), c2 = w * dp;
+    for (int k = 0; k < 6; ++k) {
+      S1[k] += c1 * uu[k];
+      S2[k] += c2 * uu[k];
+    }
+    depth = std::max(depth, g);
     touched = true;
     for (int a = 0; a < 3; ++a) {
-      if (f[a]) *f[a] += (w * l[a] * p) * u;
-      if (b[a]) *b[a] += (w * l[a] * dp) * uu;
+      if (f[a]) fl[a] += (w * l[a] * p) * u;
+      if (b[a]) {
+        const double wa = w * l[a] * dp;
+        for (int k = 0; k < 6; ++k) bl[a][k] += wa * uu[k];
+      }
+    }
+  }
+
+  void flush() {
+    if (!touched) return;
+    out->energy += energy;
+    out->force += force;
+    out->stiffness += symmetric(S1) + s0 * Mat3::Identity();
+    out->stiffness_psd -= symmetric(S2);
+    out->depth = std::max(out->depth, depth);
+    for (int a = 0; a < 3; ++a) {
+      if (f[a]) *f[a] += fl[a];
+      if (b[a]) *b[a] += symmetric(bl[a]);
     }
   }
 };
@@ -193,8 +228,9 @@ void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator
   if (acc.touched) {  // the exact depth: R less the distance to the triangle
     Vec3 b;
     const double d = (closest_on_triangle(acc.c, p0, p1, p2, &b) - acc.c).norm();
-    acc.out->depth = std::max(acc.out->depth, R - d);
+    acc.depth = std::max(acc.depth, R - d);
   }
+  acc.flush();
 }
 
 // The punch (end face centred at c, pushing along unit a, radius R) against a triangle: its
@@ -303,27 +339,6 @@ bool tool_touches(const Model& m, int k, double R, const Vec3& pose, const std::
   return behind && closest_on_triangle(Vec3::Zero(), P * (p0 - pose), P * (p1 - pose),
                                        P * (p2 - pose), &b)
                            .squaredNorm() < R * R;
-}
-
-void ContactLayer::eval(double g, double* p, double* dp, double* psi) const {
-  if (!(g > 0)) {
-    *p = *dp = *psi = 0;
-    return;
-  }
-  const double gc = 0.9 * g_max;
-  const double gg = std::min(g, gc);
-  const double r = 1 - gg / g_max;
-  double pc = k * gg / r, dpc = k / (r * r), psic = k * g_max * (-gg - g_max * std::log(r));
-  if (g <= gc) {
-    *p = pc;
-    *dp = dpc;
-    *psi = psic;
-    return;
-  }
-  const double dg = g - gc;
-  *p = pc + dpc * dg;
-  *dp = dpc;
-  *psi = psic + pc * dg + 0.5 * dpc * dg * dg;
 }
 
 ContactLayer contact_layer(const Model& m, int k, double R) {

@@ -46,6 +46,8 @@
 // No allocation, I/O or logging here: scratch comes from the caller, sized once per model.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "core/model.h"
@@ -69,6 +71,28 @@ struct ContactLayer {
   // Pressure p (Pa), its slope dp/dg (Pa/m) and the energy density psi (J/m^2) at penetration g.
   void eval(double g, double* p, double* dp, double* psi) const;
 };
+
+inline void ContactLayer::eval(double g, double* p, double* dp, double* psi) const {
+  if (!(g > 0)) {
+    *p = *dp = *psi = 0;
+    return;
+  }
+  const double gc = 0.9 * g_max;
+  const double gg = std::min(g, gc);
+  const double r = 1 - gg / g_max;
+  double pc = k * gg / r, dpc = k / (r * r), psic = k * g_max * (-gg - g_max * std::log(r));
+  if (g <= gc) {
+    *p = pc;
+    *dp = dpc;
+    *psi = psic;
+    return;
+  }
+  const double dg = g - gc;
+  *p = pc + dpc * dg;
+  *dp = dpc;
+  *psi = psic + pc * dg + 0.5 * dpc * dg * dg;
+}
+
 
 // What a tool at a fixed pose feels from the surface with the nodes held.
 struct ToolContact {
