@@ -58,8 +58,12 @@ void BM_SurfaceContactStage(benchmark::State& state) {
   state.counters["force_N"] = s.probes[0].force.norm();
 }
 // Radii in 0.1 mm: 2.5 mm (a quarter of the spacing), 10 mm, 20 mm and 40 mm (about 50 faces).
-BENCHMARK(BM_SurfaceContactStage)->Arg(25)->Arg(100)->Arg(200)->Arg(400)->Unit(
-    benchmark::kMicrosecond);
+BENCHMARK(BM_SurfaceContactStage)
+    ->Arg(25)
+    ->Arg(100)
+    ->Arg(200)
+    ->Arg(400)
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

@@ -63,14 +63,14 @@ void BM_Step(benchmark::State& state) {
   const bool big = state.range(0) == 1;
   const bool conical = state.range(1) == 1;
   const auto integ = static_cast<Integrator>(state.range(2));
-  const Model m = MakeBody(big ? std::array<int, 3>{16, 16, 16} : std::array<int, 3>{8, 8, 5},
-                           conical, integ);
+  const Model m =
+      MakeBody(big ? std::array<int, 3>{16, 16, 16} : std::array<int, 3>{8, 8, 5}, conical, integ);
   PressAndTime(state, m);
   state.counters["nodes"] = m.num_nodes();
   state.counters["springs"] = m.num_springs();
-  state.counters["ns_per_spring"] = benchmark::Counter(
-      static_cast<double>(state.iterations()) * m.num_springs(),
-      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["ns_per_spring"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * m.num_springs(),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
   state.SetLabel(std::string(big ? "block4096" : "cube320") + (conical ? "/conical/" : "/hooke/") +
                  integrator_name(integ));
 }
@@ -142,9 +142,7 @@ void BM_ImplicitBudget(benchmark::State& state) {
 }
 
 BENCHMARK(BM_Step)->Apply(Args)->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_StepVolume)
-    ->ArgsProduct({{0, 1, 2, 3}, {0, 2}})
-    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_StepVolume)->ArgsProduct({{0, 1, 2, 3}, {0, 2}})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ImplicitBudget)
     ->Args({1, 2})
     ->Args({1, 3})

@@ -64,11 +64,13 @@ int main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
   app.add_flag("--no-realtime", no_realtime, "do not try SCHED_FIFO and mlockall");
-  app.add_flag("--busy-poll", opt.busy_poll,
-               "spin on the sockets between ticks instead of sleeping (lower latency, a whole core)");
-  app.add_option("--busy-poll-fraction", opt.busy_poll_fraction,
-                 "with --busy-poll: after each answered probe rest in ppoll for (1 - F) of a period, "
-                 "then spin (F <= 0.9 keeps a SCHED_FIFO loop under real-time throttling)")
+  app.add_flag(
+      "--busy-poll", opt.busy_poll,
+      "spin on the sockets between ticks instead of sleeping (lower latency, a whole core)");
+  app.add_option(
+         "--busy-poll-fraction", opt.busy_poll_fraction,
+         "with --busy-poll: after each answered probe rest in ppoll for (1 - F) of a period, "
+         "then spin (F <= 0.9 keeps a SCHED_FIFO loop under real-time throttling)")
       ->check(CLI::Range(0.0, 1.0));
   int io_threads = 1;
   app.add_option("--io-threads", io_threads, "ZeroMQ I/O threads")->check(CLI::Range(1, 16));

@@ -1,16 +1,15 @@
 #include "core/body.h"
 
-#include "core/contact.h"
-#include "core/volume.h"
-
 #include <Eigen/Geometry>
-
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <numeric>
 #include <set>
 #include <sstream>
+
+#include "core/contact.h"
+#include "core/volume.h"
 
 namespace conica {
 namespace {
@@ -28,8 +27,8 @@ int pair_family(int a, int b) {
 struct RawSpring {
   int i, j;
   int family;
-  double volume_share;                 // m^3
-  std::vector<int> regions;            // region indices of the elements holding it
+  double volume_share;       // m^3
+  std::vector<int> regions;  // region indices of the elements holding it
 };
 
 // Orders each group's springs by node offset (j - i), then i, when that puts them in runs: springs
@@ -72,9 +71,12 @@ double Model::total_mass() const { return std::accumulate(mass.begin(), mass.end
 
 const char* integrator_name(Integrator i) {
   switch (i) {
-    case Integrator::kSymplecticEuler: return "symplectic";
-    case Integrator::kExplicitEuler: return "explicit";
-    case Integrator::kImplicitEuler: return "implicit";
+    case Integrator::kSymplecticEuler:
+      return "symplectic";
+    case Integrator::kExplicitEuler:
+      return "explicit";
+    case Integrator::kImplicitEuler:
+      return "implicit";
   }
   return "unknown";
 }
@@ -93,7 +95,8 @@ Mesh make_box_lattice(const Vec3& size, const std::array<int, 3>& cells) {
     for (int j = 0; j < cells[1]; ++j)
       for (int i = 0; i < cells[0]; ++i) {
         std::array<int, 8> h;
-        for (int c = 0; c < 8; ++c) h[c] = id(i + kCorner[c][0], j + kCorner[c][1], k + kCorner[c][2]);
+        for (int c = 0; c < 8; ++c)
+          h[c] = id(i + kCorner[c][0], j + kCorner[c][1], k + kCorner[c][2]);
         m.hexahedra.push_back(h);
       }
   return m;
@@ -120,7 +123,8 @@ double hex_volume(const Mesh& mesh, const std::array<int, 8>& h) {
 double body_volume(const Model& model) {
   const std::vector<Vec3>& x = model.rest;
   double v = 0;
-  for (const auto& t : model.tetrahedra) v += std::abs(tet_volume(x[t[0]], x[t[1]], x[t[2]], x[t[3]]));
+  for (const auto& t : model.tetrahedra)
+    v += std::abs(tet_volume(x[t[0]], x[t[1]], x[t[2]], x[t[3]]));
   for (const auto& h : model.hexahedra) v += std::abs(hex_volume(x, h));
   return v;
 }
@@ -131,8 +135,7 @@ double hex_volume(const std::vector<Vec3>& nodes, const std::array<int, 8>& h) {
                                       {0, 7, 4, 6}, {0, 4, 5, 6}, {0, 5, 1, 6}};
   double v = 0;
   for (const auto& t : kTets)
-    v += tet_volume(nodes[h[t[0]]], nodes[h[t[1]]], nodes[h[t[2]]],
-                    nodes[h[t[3]]]);
+    v += tet_volume(nodes[h[t[0]]], nodes[h[t[1]]], nodes[h[t[2]]], nodes[h[t[3]]]);
   return v;
 }
 
@@ -221,7 +224,8 @@ std::string build_model(const BodySpec& spec, Model* out) {
     if (!(value >= 0) || !std::isfinite(value))
       return std::string(name) + " must be >= 0 Pa (got " + fmt(value) + ")";
     if (value > 0 && spec.options.active_region)
-      return std::string(name) + " and the active region do not go together: the region's "
+      return std::string(name) +
+             " and the active region do not go together: the region's "
              "lists hold springs only";
   }
   if (spec.spread_modulus > 0 && !(spec.bulk_modulus > 0))
@@ -230,7 +234,8 @@ std::string build_model(const BodySpec& spec, Model* out) {
   // Element volumes, lumped masses and raw springs with volume shares.
   std::vector<double> mass(nn, 0.0);
   std::map<std::pair<int, int>, RawSpring> springs;
-  std::vector<std::vector<int>> tet_regions(mesh.tetrahedra.size()), hex_regions(mesh.hexahedra.size());
+  std::vector<std::vector<int>> tet_regions(mesh.tetrahedra.size()),
+      hex_regions(mesh.hexahedra.size());
   for (size_t r = 0; r < mesh.regions.size(); ++r) {
     for (int t : mesh.regions[r].tetrahedra) tet_regions.at(t).push_back(static_cast<int>(r));
     for (int h : mesh.regions[r].hexahedra) hex_regions.at(h).push_back(static_cast<int>(r));
@@ -392,8 +397,12 @@ std::string build_model(const BodySpec& spec, Model* out) {
   for (size_t k = 0; k < spec.fixed.size(); ++k) {
     const auto& f = spec.fixed[k];
     int count = 0;
-    if (f.axes < 1 || f.axes > 7) return "fixed selector " + std::to_string(k) + ": axes must be 1..7";
-    auto fix = [&](int i) { ++count; m.fixed[i] |= static_cast<std::uint8_t>(f.axes); };
+    if (f.axes < 1 || f.axes > 7)
+      return "fixed selector " + std::to_string(k) + ": axes must be 1..7";
+    auto fix = [&](int i) {
+      ++count;
+      m.fixed[i] |= static_cast<std::uint8_t>(f.axes);
+    };
     switch (f.kind) {
       case FixedSelector::Kind::kPlane: {
         const Vec3 n = f.normal.normalized();
@@ -417,7 +426,8 @@ std::string build_model(const BodySpec& spec, Model* out) {
           for (int h : r.hexahedra)
             for (int i : mesh.hexahedra[h]) fix(i);
         }
-        if (!found) return "fixed selector " + std::to_string(k) + ": no region \"" + f.region + "\"";
+        if (!found)
+          return "fixed selector " + std::to_string(k) + ": no region \"" + f.region + "\"";
         break;
       }
       case FixedSelector::Kind::kNodes:
@@ -442,7 +452,8 @@ std::string build_model(const BodySpec& spec, Model* out) {
   m.surface = boundary_triangles(mesh);
   m.normal.assign(nn, Vec3::Zero());
   for (const auto& t : m.surface) {
-    const Vec3 an = (mesh.nodes[t[1]] - mesh.nodes[t[0]]).cross(mesh.nodes[t[2]] - mesh.nodes[t[0]]);
+    const Vec3 an =
+        (mesh.nodes[t[1]] - mesh.nodes[t[0]]).cross(mesh.nodes[t[2]] - mesh.nodes[t[0]]);
     for (int k : t) m.normal[k] += an;  // area-weighted
   }
   for (Vec3& n : m.normal)
@@ -484,7 +495,8 @@ std::string build_model(const BodySpec& spec, Model* out) {
   return {};
 }
 
-Model make_spring_pair(const SpringCard& card, double l0, double mass, const SolverOptions& options) {
+Model make_spring_pair(const SpringCard& card, double l0, double mass,
+                       const SolverOptions& options) {
   Model m;
   m.rest = {Vec3::Zero(), Vec3(0, 0, l0)};
   m.mass = {mass, mass};

@@ -34,20 +34,20 @@ struct FixedSelector {
   double offset = 0;            // m
   double tolerance = 1e-9;      // m
   Vec3 box_min = Vec3::Zero(), box_max = Vec3::Zero();  // kBox, m
-  std::string region;           // kRegion
-  std::vector<int> nodes;       // kNodes, 0-based
-  int axes = 7;                 // which axes are fixed: bit 0 x, 1 y, 2 z (7: all, a clamp)
+  std::string region;                                   // kRegion
+  std::vector<int> nodes;                               // kNodes, 0-based
+  int axes = 7;  // which axes are fixed: bit 0 x, 1 y, 2 z (7: all, a clamp)
 };
 
 struct BodySpec {
-  Mesh mesh;                     // metres
-  double density = 1000;         // kg/m^3
+  Mesh mesh;              // metres
+  double density = 1000;  // kg/m^3
   std::vector<SpringGroupSpec> groups;
   std::vector<FixedSelector> fixed;
   Mapping mapping = Mapping::kStrain;
-  double bulk_modulus = 0;       // Pa, volume stiffness of every element (core/volume.h); 0: none
-  double spread_modulus = 0;     // Pa, hexahedra's Gauss-point spread stiffness (model.h); 0: none
-  double shear_modulus = 0;      // Pa, isochoric neo-Hookean shear stiffness (volume.h); 0: none
+  double bulk_modulus = 0;    // Pa, volume stiffness of every element (core/volume.h); 0: none
+  double spread_modulus = 0;  // Pa, hexahedra's Gauss-point spread stiffness (model.h); 0: none
+  double shear_modulus = 0;   // Pa, isochoric neo-Hookean shear stiffness (volume.h); 0: none
   SolverOptions options;
   std::vector<ProbeSpec> probes;
   std::vector<PlaneSpec> planes;
@@ -74,7 +74,8 @@ double body_volume(const Model& model);
 // Two nodes on the z axis joined by one spring of `card` (raw mapping): node 0 fixed at the
 // origin, node 1 at z = l0 (m) free along z only, each of `mass` kg. For single-spring experiments
 // against analytic values. Precondition: a valid card.
-Model make_spring_pair(const SpringCard& card, double l0, double mass, const SolverOptions& options);
+Model make_spring_pair(const SpringCard& card, double l0, double mass,
+                       const SolverOptions& options);
 
 // Builds the model. Returns an empty string on success, otherwise what is wrong (negative
 // density, invalid card in group "x": ..., group "y" matches no spring, N springs match no

@@ -56,10 +56,11 @@ struct NonlinearKernel {
 }  // namespace
 
 std::string validate(const ConicalCard& c) {
-  const std::pair<const char*, double> fields[] = {
-      {"G", c.G}, {"d", c.d}, {"D1", c.D1}, {"D2", c.D2}, {"L0", c.L0}, {"n_a", c.n_a}};
+  const std::pair<const char*, double> fields[] = {{"G", c.G},   {"d", c.d},   {"D1", c.D1},
+                                                   {"D2", c.D2}, {"L0", c.L0}, {"n_a", c.n_a}};
   for (const auto& [name, v] : fields) {
-    if (!std::isfinite(v)) return std::string(name) + " must be a finite number (got " + fmt(v) + ")";
+    if (!std::isfinite(v))
+      return std::string(name) + " must be a finite number (got " + fmt(v) + ")";
   }
   if (c.G <= 0) return "G must be > 0 (got " + fmt(c.G) + ")";
   if (c.d <= 0) return "d must be > 0 (got " + fmt(c.d) + ")";
@@ -82,10 +83,14 @@ std::string validate(const ConicalCard& c) {
 
 const char* phase_name(Phase p) {
   switch (p) {
-    case Phase::kTension: return "tension";
-    case Phase::kLinear: return "linear";
-    case Phase::kNonlinear: return "nonlinear";
-    case Phase::kSolid: return "solid";
+    case Phase::kTension:
+      return "tension";
+    case Phase::kLinear:
+      return "linear";
+    case Phase::kNonlinear:
+      return "nonlinear";
+    case Phase::kSolid:
+      return "solid";
   }
   return "unknown";
 }
@@ -221,7 +226,8 @@ double ConicalLaw::load_eq12_as_printed(double delta) const {
   const double A7 = (card_.L0 - Ls_) * D2 / (D2 - D1);
   const double A4 = std::pow((A7 + delta) / A5, 2);
   const double A2 = -A6 / A5;
-  const double A3 = std::cbrt(A4 / 16.0 + std::sqrt(std::pow(A4 / 16.0, 2) + std::pow(A2 / 3.0, 3)));
+  const double A3 =
+      std::cbrt(A4 / 16.0 + std::sqrt(std::pow(A4 / 16.0, 2) + std::pow(A2 / 3.0, 3)));
   const double A1 = A3 - A2 / (3.0 * A3);
   const double inner = 1.0 - std::sqrt(1.0 + A2 / (A1 * A1));
   const double bracket = 1.0 - (1.0 - 2.0 * std::sqrt(inner));
@@ -244,7 +250,10 @@ double ConicalLaw::gap_from_s(double s) const {
     const double wp = -ir * ir * (3.0 + ir * r1_ * (4.0 + 3.0 * ir * r1_));
     const double sw = std::sqrt(w);
     const double f = x * sw - sigma;
-    if (f > 0) hi = std::min(hi, x); else lo = std::max(lo, x);
+    if (f > 0)
+      hi = std::min(hi, x);
+    else
+      lo = std::max(lo, x);
     const double fp = sw + x * wp / (2.0 * sw);
     double next = x - f / fp;
     if (!(next >= lo && next <= hi)) next = 0.5 * (lo + hi);
@@ -264,8 +273,7 @@ double ConicalLaw::radius_from_deflection(double delta) const {
 double ConicalLaw::energy_at_radius(double rt) const {
   // E(rt) = Et + 3 c A^2 [ (1/(2 rt^2) - 1/(2 r2^2)) - r1^4/6 (1/rt^6 - 1/r2^6) ]
   const double i2 = 1.0 / (rt * rt), j2 = 1.0 / (r2_ * r2_);
-  return Et_ + 3.0 * c_ * A_ * A_ *
-                   (0.5 * (i2 - j2) - r1p4_ / 6.0 * (i2 * i2 * i2 - j2 * j2 * j2));
+  return Et_ + 3.0 * c_ * A_ * A_ * (0.5 * (i2 - j2) - r1p4_ / 6.0 * (i2 * i2 * i2 - j2 * j2 * j2));
 }
 
 LawSample ConicalLaw::evaluate_exact(double delta) const {
@@ -300,8 +308,16 @@ LawSample ConicalLaw::evaluate_plain(double delta) const {
     return {Pcap_ + kcap_ * (delta - dcap_), kcap_, delta > S_ ? Phase::kSolid : Phase::kNonlinear};
   }
   const double* tab = table_.data();
-  const NonlinearKernel kern{S_,  inv_h_, r1_, A_, c_, sqrt_cA_, tab, tab + kTableSegments,
-                             tab + 2 * kTableSegments, tab + 3 * kTableSegments,
+  const NonlinearKernel kern{S_,
+                             inv_h_,
+                             r1_,
+                             A_,
+                             c_,
+                             sqrt_cA_,
+                             tab,
+                             tab + kTableSegments,
+                             tab + 2 * kTableSegments,
+                             tab + 3 * kTableSegments,
                              kTableSegments - 1};
   LawSample out{0, 0, Phase::kNonlinear};
   kern(delta, &out.force, &out.stiffness);
@@ -323,8 +339,16 @@ template <bool kShifted>
 void ConicalLaw::evaluate_batch_impl(const double* __restrict deflection, double* __restrict force,
                                      double* __restrict stiffness, int n) const {
   const double* tab = table_.data();
-  const NonlinearKernel kern{S_,  inv_h_, r1_, A_, c_, sqrt_cA_, tab, tab + kTableSegments,
-                             tab + 2 * kTableSegments, tab + 3 * kTableSegments,
+  const NonlinearKernel kern{S_,
+                             inv_h_,
+                             r1_,
+                             A_,
+                             c_,
+                             sqrt_cA_,
+                             tab,
+                             tab + kTableSegments,
+                             tab + 2 * kTableSegments,
+                             tab + 3 * kTableSegments,
                              kTableSegments - 1};
   const double dt = dt_, dcap = dcap_, K0 = K0_, Pcap = Pcap_, kcap = kcap_, kcf = kcap_force_;
   const double d0 = d0_, F0 = F0_;

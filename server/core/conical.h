@@ -50,12 +50,12 @@ namespace conica {
 // A conical spring card. Lengths in the card's unit of length (SI: m), G in its unit of
 // stress (SI: Pa).
 struct ConicalCard {
-  double G = 0;    // shear modulus of the wire
-  double d = 0;    // wire diameter
-  double D1 = 0;   // smallest mean coil diameter
-  double D2 = 0;   // largest mean coil diameter
-  double L0 = 0;   // free length
-  double n_a = 0;  // number of active coils
+  double G = 0;               // shear modulus of the wire
+  double d = 0;               // wire diameter
+  double D1 = 0;              // smallest mean coil diameter
+  double D2 = 0;              // largest mean coil diameter
+  double L0 = 0;              // free length
+  double n_a = 0;             // number of active coils
   double precompression = 0;  // delta0: initial deflection of the installed spring (unit of
                               // length, SI: m), 0 <= delta0 < S; 0: the plain law
 };
@@ -83,10 +83,10 @@ class ConicalLaw {
 
   const ConicalCard& card() const { return card_; }
   bool telescopic() const { return telescopic_; }  // Type II
-  double solid_height() const { return Ls_; }       // Ls
-  double stroke() const { return S_; }              // S = L0 - Ls
-  double k0() const { return K0_; }                 // linear-phase stiffness
-  double transition_load() const { return Pt_; }    // Pt = A / r2^3
+  double solid_height() const { return Ls_; }      // Ls
+  double stroke() const { return S_; }             // S = L0 - Ls
+  double k0() const { return K0_; }                // linear-phase stiffness
+  double transition_load() const { return Pt_; }   // Pt = A / r2^3
   double transition_deflection() const { return dt_; }
   double solid_load() const { return Ps_; }  // Ps = A / r1^3
   double stiffness_cap() const { return kcap_; }
@@ -143,8 +143,8 @@ class ConicalLaw {
 
  private:
   double radius_from_deflection(double delta) const;  // exact nonlinear-phase solve
-  double gap_from_s(double s) const;  // r_t - r1 from s = sqrt(S - delta)
-  double energy_at_radius(double rt) const;  // energy from 0 to deflection at radius rt
+  double gap_from_s(double s) const;                  // r_t - r1 from s = sqrt(S - delta)
+  double energy_at_radius(double rt) const;           // energy from 0 to deflection at radius rt
   // The plain law (no pre-compression) at the spring's own deflection.
   LawSample evaluate_plain(double delta) const;
   LawSample evaluate_exact_plain(double delta) const;

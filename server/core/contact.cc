@@ -3,7 +3,6 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
-
 #include <algorithm>
 #include <cmath>
 
@@ -38,8 +37,8 @@ struct Accumulator {
   const Vec3& c;
   double R;
   ToolContact* out;
-  Vec3* f[3];    // node forces (null: not wanted)
-  Mat3* b[3];    // node blocks (null: not wanted)
+  Vec3* f[3];  // node forces (null: not wanted)
+  Mat3* b[3];  // node blocks (null: not wanted)
   bool touched = false;
   double energy = 0, s0 = 0, depth = 0;
   Vec3 force = Vec3::Zero();
@@ -154,7 +153,8 @@ void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&&
     const Vec3& Qb = Q[(k + 1) % 3];
     const Vec3 A = Qa - O, D = Qb - Qa;
     if (!(A.cross(D).dot(n) > 0)) continue;  // O on this edge
-    // The edge point Q_a + t D is on the rim at the roots of |D|^2 t^2 + 2 (Q_a.D) t + |Q_a|^2 - a^2.
+    // The edge point Q_a + t D is on the rim at the roots of |D|^2 t^2 + 2 (Q_a.D) t + |Q_a|^2 -
+    // a^2.
     double breaks[4] = {0, 1, 1, 1};
     int nb = 1;
     const double qa = D.squaredNorm(), qb = Qa.dot(D), qc = Qa.squaredNorm() - a2;
@@ -181,8 +181,8 @@ void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&&
       constexpr int panels = 2;
       for (int pn = 0; pn < panels; ++pn)
         for (int i = 0; i < kGauss; ++i) {
-          Vec3 w;      // the ray's direction (rim) or its end on the edge (edge)
-          double wt;   // weight of the ray
+          Vec3 w;     // the ray's direction (rim) or its end on the edge (edge)
+          double wt;  // weight of the ray
           if (rim) {
             // Polar: rays at angle theta, out to the rim, area element rho d rho d theta.
             const double dth = span / panels, th = (pn + kGaussX[i]) * dth;
@@ -298,8 +298,7 @@ Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3
 
 // Parameter in [0, 1] at which segment p -> q first meets triangle (a, b, c), or 2 when it does
 // not (Moller-Trumbore, both sides).
-double segment_triangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b,
-                        const Vec3& c) {
+double segment_triangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 d = q - p, e1 = b - a, e2 = c - a;
   const Vec3 h = d.cross(e2);
   const double det = e1.dot(h);
@@ -336,9 +335,9 @@ bool tool_touches(const Model& m, int k, double R, const Vec3& pose, const std::
   const Vec3& a = m.probes[k].axis;
   const Mat3 P = Mat3::Identity() - a * a.transpose();
   const bool behind = (p0 - pose).dot(a) < 0 || (p1 - pose).dot(a) < 0 || (p2 - pose).dot(a) < 0;
-  return behind && closest_on_triangle(Vec3::Zero(), P * (p0 - pose), P * (p1 - pose),
-                                       P * (p2 - pose), &b)
-                           .squaredNorm() < R * R;
+  return behind &&
+         closest_on_triangle(Vec3::Zero(), P * (p0 - pose), P * (p1 - pose), P * (p2 - pose), &b)
+                 .squaredNorm() < R * R;
 }
 
 ContactLayer contact_layer(const Model& m, int k, double R) {
@@ -395,16 +394,15 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
     if (spec.shape == ToolShape::kSphere) {
       // Quick reject: the triangle's bounding sphere misses the ball.
       const Vec3 cen = (p0 + p1 + p2) / 3;
-      const double rad = std::sqrt(std::max({(p0 - cen).squaredNorm(), (p1 - cen).squaredNorm(),
-                                             (p2 - cen).squaredNorm()}));
+      const double rad = std::sqrt(
+          std::max({(p0 - cen).squaredNorm(), (p1 - cen).squaredNorm(), (p2 - cen).squaredNorm()}));
       if ((cen - pose).squaredNorm() >= (R + rad) * (R + rad)) continue;
       Accumulator acc{layer, pose, R, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
       sphere_triangle(p0, p1, p2, acc);
       touched = acc.touched;
     } else {
       // Quick reject: every vertex in front of the face, or the triangle far from the axis.
-      if ((p0 - pose).dot(axis) >= 0 && (p1 - pose).dot(axis) >= 0 &&
-          (p2 - pose).dot(axis) >= 0)
+      if ((p0 - pose).dot(axis) >= 0 && (p1 - pose).dot(axis) >= 0 && (p2 - pose).dot(axis) >= 0)
         continue;
       PunchAccumulator acc{layer, pose, axis, R, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
       punch_triangle(p0, p1, p2, acc);
@@ -540,8 +538,8 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
       const auto& f = m.surface[t];
       const Vec3 &p0 = x[f[0]], &p1 = x[f[1]], &p2 = x[f[2]];
       const Vec3 cen = (p0 + p1 + p2) / 3;
-      const double rad = std::sqrt(std::max(
-          {(p0 - cen).squaredNorm(), (p1 - cen).squaredNorm(), (p2 - cen).squaredNorm()}));
+      const double rad = std::sqrt(
+          std::max({(p0 - cen).squaredNorm(), (p1 - cen).squaredNorm(), (p2 - cen).squaredNorm()}));
       const double s = seg2 > 0 ? std::clamp((cen - start).dot(seg) / seg2, 0.0, 1.0) : 0.0;
       const double lim = reach + rad;
       if ((cen - (start + s * seg)).squaredNorm() < lim * lim) candidates->push_back(t);
@@ -601,8 +599,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
       for (int ls = 0; ls < 20; ++ls) {
         next = at + alpha * dx;
         tool_contact(m, k, R, next, x, cand, nc, &trial);
-        phi_next =
-            0.5 * kvc * (next - target).squaredNorm() + trial.energy + friction_energy(next);
+        phi_next = 0.5 * kvc * (next - target).squaredNorm() + trial.energy + friction_energy(next);
         const bool shallow = trial.depth < g_limit || trial.depth <= c.depth;
         if (shallow && phi_next <= phi + 1e-4 * alpha * grad.dot(dx)) {
           accepted = true;

@@ -7,7 +7,8 @@
 // axis) carries the pressure p(g) of a contact layer, pushing it out of the tool (sphere: along
 // u = (y - c) / |y - c|; punch: along a). The layer stores the energy
 //     E = integral over the surface of psi(g) dA,   psi' = p,
-//     p(g) = k g / (1 - g / g_max)   for g <= 0.9 g_max,  then linear in g with the slope at 0.9 g_max,
+//     p(g) = k g / (1 - g / g_max)   for g <= 0.9 g_max,  then linear in g with the slope at 0.9
+//     g_max,
 // a penalty of stiffness k (Pa/m) that turns into a barrier at g_max = kContactDepthFraction R, so
 // the tool never sinks deeper than that into the deformed surface at any force. The integral is
 // taken triangle by triangle, exactly in the geometry: each triangle's overlap with the tool
@@ -93,15 +94,14 @@ inline void ContactLayer::eval(double g, double* p, double* dp, double* psi) con
   *psi = psic + pc * dg + 0.5 * dpc * dg * dg;
 }
 
-
 // What a tool at a fixed pose feels from the surface with the nodes held.
 struct ToolContact {
-  double energy = 0;               // J
-  Vec3 force = Vec3::Zero();       // N, on the tool
-  Mat3 stiffness = Mat3::Zero();   // N/m, d force / d pose (exact)
+  double energy = 0;                  // J
+  Vec3 force = Vec3::Zero();          // N, on the tool
+  Mat3 stiffness = Mat3::Zero();      // N/m, d force / d pose (exact)
   Mat3 stiffness_psd = Mat3::Zero();  // N/m, its positive part: -sum p' n n^T (no curvature term)
-  double depth = 0;                // m, deepest penetration
-  int faces = 0;                   // triangles touched
+  double depth = 0;                   // m, deepest penetration
+  int faces = 0;                      // triangles touched
 };
 
 // The layer of probe k (its stiffness and barrier for a tool of radius R, m).

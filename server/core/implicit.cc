@@ -48,8 +48,7 @@ namespace {
 
 // In place: w <- beta w + (alpha - beta)(d.w) d, each spring's block times its w.
 [[gnu::noinline]] void spring_blocks_times(int n, const double* __restrict ux,
-                                           const double* __restrict uy,
-                                           const double* __restrict uz,
+                                           const double* __restrict uy, const double* __restrict uz,
                                            const double* __restrict alpha,
                                            const double* __restrict beta, double* __restrict wx,
                                            double* __restrict wy, double* __restrict wz) {
@@ -90,9 +89,8 @@ namespace {
 // entry e of spring t at b[e * ldb + t].
 [[gnu::noinline]] void block_entries(int n, const double* __restrict ux,
                                      const double* __restrict uy, const double* __restrict uz,
-                                     const double* __restrict alpha,
-                                     const double* __restrict beta, int ldb,
-                                     double* __restrict b) {
+                                     const double* __restrict alpha, const double* __restrict beta,
+                                     int ldb, double* __restrict b) {
   for (int t = 0; t < n; ++t) {
     const double ab = alpha[t] - beta[t], be = beta[t];
     const double x = ux[t], y = uy[t], z = uz[t];
@@ -162,11 +160,10 @@ double dot(int n, const double* __restrict a, const double* __restrict b) {
 // current direction, so an inversion counts) and than they are now; x and dx component-major.
 [[gnu::noinline]] int count_blocked(int ns, int nn, const double* __restrict px,
                                     const double* __restrict py, const double* __restrict pz,
-                                    const double* __restrict dx, double t,
-                                    const int* __restrict si, const int* __restrict sj,
-                                    const double* __restrict ux, const double* __restrict uy,
-                                    const double* __restrict uz, const double* __restrict lmin,
-                                    const double* __restrict len) {
+                                    const double* __restrict dx, double t, const int* __restrict si,
+                                    const int* __restrict sj, const double* __restrict ux,
+                                    const double* __restrict uy, const double* __restrict uz,
+                                    const double* __restrict lmin, const double* __restrict len) {
   int blocked = 0;
   for (int k = 0; k < ns; ++k) {
     const int i = si[k], j = sj[k];
@@ -311,8 +308,8 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
         run_differences(r.n, nn, p + r.i, p + r.j, w + t, w + kC + t, w + 2 * kC + t);
       }
       spring_blocks_times(ch.k1 - ch.k0, ws.ux.data() + ch.k0, ws.uy.data() + ch.k0,
-                          ws.uz.data() + ch.k0, ws.alpha.data() + ch.k0, ws.beta.data() + ch.k0,
-                          w, w + kC, w + 2 * kC);
+                          ws.uz.data() + ch.k0, ws.alpha.data() + ch.k0, ws.beta.data() + ch.k0, w,
+                          w + kC, w + 2 * kC);
       for (int q = ch.first_run; q < ch.last_run; ++q) {
         const Workspace::Run& r = ws.runs[q];
         const int t = r.k - ch.k0;
@@ -325,16 +322,17 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
       }
     }
   }
-  for_each_element(m, ws, [&](const auto& nodes, const double* lap, const Vec3* g, double cg,
-                               const Vec3* gq, double cq) {
-    constexpr int N = std::tuple_size_v<std::decay_t<decltype(nodes)>>;
-    double P[3][N], Y[3][N];
-    for (int a = 0; a < N; ++a)
-      for (int c = 0; c < 3; ++c) P[c][a] = p[c * nn + nodes[a]];
-    element_times(P, lap, g, cg, gq, cq, Y);
-    for (int a = 0; a < N; ++a)
-      for (int c = 0; c < 3; ++c) y[c * nn + nodes[a]] += Y[c][a];
-  });
+  for_each_element(m, ws,
+                   [&](const auto& nodes, const double* lap, const Vec3* g, double cg,
+                       const Vec3* gq, double cq) {
+                     constexpr int N = std::tuple_size_v<std::decay_t<decltype(nodes)>>;
+                     double P[3][N], Y[3][N];
+                     for (int a = 0; a < N; ++a)
+                       for (int c = 0; c < 3; ++c) P[c][a] = p[c * nn + nodes[a]];
+                     element_times(P, lap, g, cg, gq, cq, Y);
+                     for (int a = 0; a < N; ++a)
+                       for (int c = 0; c < 3; ++c) y[c * nn + nodes[a]] += Y[c][a];
+                   });
   const double* __restrict f = ws.sys_free.data();
   for (int k = 0; k < 3 * nn; ++k) y[k] *= f[k];
 }
@@ -382,8 +380,8 @@ void build_preconditioner(const Model& m, Workspace& ws) {
     }
   } else {
     for (const Workspace::Chunk& ch : ws.chunks) {
-      block_entries(ch.k1 - ch.k0, ws.ux.data() + ch.k0, ws.uy.data() + ch.k0,
-                    ws.uz.data() + ch.k0, ws.alpha.data() + ch.k0, ws.beta.data() + ch.k0, kC, b);
+      block_entries(ch.k1 - ch.k0, ws.ux.data() + ch.k0, ws.uy.data() + ch.k0, ws.uz.data() + ch.k0,
+                    ws.alpha.data() + ch.k0, ws.beta.data() + ch.k0, kC, b);
       for (int q = ch.first_run; q < ch.last_run; ++q) {
         const Workspace::Run& r = ws.runs[q];
         const int t = r.k - ch.k0;
@@ -392,26 +390,27 @@ void build_preconditioner(const Model& m, Workspace& ws) {
       }
     }
   }
-  for_each_element(m, ws, [&](const auto& nodes, const double* lap, const Vec3* g, double cg,
-                               const Vec3* gq, double cq) {
-    constexpr int N = std::tuple_size_v<std::decay_t<decltype(nodes)>>;
-    auto add = [&](int a, const Vec3& u, double c) {
-      const int i = nodes[a];
-      d[i] += c * u.x() * u.x();
-      d[nn + i] += c * u.y() * u.y();
-      d[2 * nn + i] += c * u.z() * u.z();
-      d[3 * nn + i] += c * u.x() * u.y();
-      d[4 * nn + i] += c * u.x() * u.z();
-      d[5 * nn + i] += c * u.y() * u.z();
-    };
-    for (int a = 0; a < N; ++a) {
-      if (lap)
-        for (int c = 0; c < 3; ++c) d[c * nn + nodes[a]] += lap[(N + 1) * a];
-      if (g) add(a, g[a], cg);
-      if (gq)
-        for (int q = 0; q < 8; ++q) add(a, gq[8 * q + a], cq);
-    }
-  });
+  for_each_element(m, ws,
+                   [&](const auto& nodes, const double* lap, const Vec3* g, double cg,
+                       const Vec3* gq, double cq) {
+                     constexpr int N = std::tuple_size_v<std::decay_t<decltype(nodes)>>;
+                     auto add = [&](int a, const Vec3& u, double c) {
+                       const int i = nodes[a];
+                       d[i] += c * u.x() * u.x();
+                       d[nn + i] += c * u.y() * u.y();
+                       d[2 * nn + i] += c * u.z() * u.z();
+                       d[3 * nn + i] += c * u.x() * u.y();
+                       d[4 * nn + i] += c * u.x() * u.z();
+                       d[5 * nn + i] += c * u.y() * u.z();
+                     };
+                     for (int a = 0; a < N; ++a) {
+                       if (lap)
+                         for (int c = 0; c < 3; ++c) d[c * nn + nodes[a]] += lap[(N + 1) * a];
+                       if (g) add(a, g[a], cg);
+                       if (gq)
+                         for (int q = 0; q < 8; ++q) add(a, gq[8 * q + a], cq);
+                     }
+                   });
   invert_blocks(nn, d, ws.sys_free.data(), ws.sys_pre.data());
 }
 
@@ -419,9 +418,8 @@ void build_preconditioner(const Model& m, Workspace& ws) {
 // from the values the force pass kept (card units -> node units).
 [[gnu::noinline]] void coefficients(int n, double h, double c, const double* __restrict a,
                                     const double* __restrict b, const double* __restrict tangent,
-                                    const double* __restrict load,
-                                    const double* __restrict length, double* __restrict alpha,
-                                    double* __restrict beta) {
+                                    const double* __restrict load, const double* __restrict length,
+                                    double* __restrict alpha, double* __restrict beta) {
   for (int k = 0; k < n; ++k) {
     const double kax = std::min(a[k] * b[k] * tangent[k], 1e300);
     alpha[k] = h * h * kax + h * a[k] * b[k] * b[k] * c;
@@ -496,8 +494,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
     evaluate_forces(m, s, ws, true);
     // rhs = -h^2 R = h^2 f - M (x1 - x0 - h v0), on free axes.
     for (int i = 0; i < nn; ++i) {
-      const Vec3 res =
-          h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.x0[i] - h * ws.v0[i]);
+      const Vec3 res = h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.x0[i] - h * ws.v0[i]);
       for (int c = 0; c < 3; ++c) ws.sys_rhs[c * nn + i] = res[c] * ws.sys_free[c * nn + i];
     }
     ws.sys_h2 = h * h;
@@ -521,8 +518,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
         step_len *= 0.5;
       }
     }
-    for (int i = 0; i < nn; ++i)
-      s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
+    for (int i = 0; i < nn; ++i) s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
   }
   for (int i = 0; i < nn; ++i) s.v[i] = ((s.x[i] - ws.x0[i]) / h).cwiseProduct(m.free_axes[i]);
 }

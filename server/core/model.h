@@ -4,7 +4,6 @@
 #pragma once
 
 #include <Eigen/Core>
-
 #include <array>
 #include <cstdint>
 #include <limits>
@@ -32,13 +31,13 @@ enum class Mapping : std::uint8_t { kRaw = 0, kStrain = 1 };
 // A spring card: the law of one spring group.
 struct SpringCard {
   LawKind law = LawKind::kConical;
-  ConicalCard conical;           // kConical: G in Pa, lengths in m
-  double hooke_k = 0;            // kHooke: stiffness in N/m of the card's spring
-  double hooke_length = 0;       // kHooke: its free length L in m (used by kStrain)
-  double stiffness_cap = 1e3;    // kConical: tangent stiffness cap as a multiple of K0
-  double damping = 0;            // N s/m of the card's spring (dashpot parallel to it)
-  double maxwell_k = 0;          // N/m: Maxwell branch spring (0: no branch)
-  double maxwell_tau = 0;        // s: Maxwell branch relaxation time
+  ConicalCard conical;         // kConical: G in Pa, lengths in m
+  double hooke_k = 0;          // kHooke: stiffness in N/m of the card's spring
+  double hooke_length = 0;     // kHooke: its free length L in m (used by kStrain)
+  double stiffness_cap = 1e3;  // kConical: tangent stiffness cap as a multiple of K0
+  double damping = 0;          // N s/m of the card's spring (dashpot parallel to it)
+  double maxwell_k = 0;        // N/m: Maxwell branch spring (0: no branch)
+  double maxwell_tau = 0;      // s: Maxwell branch relaxation time
 
   double free_length() const { return law == LawKind::kConical ? conical.L0 : hooke_length; }
   // Initial (linear-phase) stiffness in N/m of the card's spring.
@@ -63,15 +62,15 @@ const char* integrator_name(Integrator i);
 
 struct SolverOptions {
   Integrator integrator = Integrator::kSymplecticEuler;
-  double dt = 1e-3;              // s, one tick
-  int substeps = 1;              // steps per tick (dt / substeps each)
-  int newton_iterations = 2;     // implicit: fixed budget per step
-  int cg_iterations = 40;        // implicit: fixed budget per Newton iteration
-  double cg_tolerance = 1e-8;    // implicit: relative residual to stop early
-  double mass_damping = 0;       // 1/s: Rayleigh mass-proportional damping on all nodes
+  double dt = 1e-3;            // s, one tick
+  int substeps = 1;            // steps per tick (dt / substeps each)
+  int newton_iterations = 2;   // implicit: fixed budget per step
+  int cg_iterations = 40;      // implicit: fixed budget per Newton iteration
+  double cg_tolerance = 1e-8;  // implicit: relative residual to stop early
+  double mass_damping = 0;     // 1/s: Rayleigh mass-proportional damping on all nodes
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
-  double min_length_fraction = 0.05;  // hard stop: no spring shorter than this x l0
-  bool hard_stop = true;         // off only to show what happens without it
+  double min_length_fraction = 0.05;                  // hard stop: no spring shorter than this x l0
+  bool hard_stop = true;                              // off only to show what happens without it
   // Active region (symplectic and explicit Euler): only nodes a probe can move by more than
   // active_tolerance are integrated; the rest sleep at their state (see step.h).
   bool active_region = false;
@@ -84,47 +83,47 @@ struct SolverOptions {
   // whole step, the whole body steps every tick until the estimate falls below 0.8 of it
   // (infinity: never; see step.h).
   double active_whole_body_cost = 0.85;
-  double max_speed = 50;         // m/s: guard: faster nodes mean the step blew up
+  double max_speed = 50;  // m/s: guard: faster nodes mean the step blew up
 };
 
 // A rigid tool moved by a client, in contact with the body's deformed surface through a proxy
 // (core/contact.h).
 enum class ToolShape : std::uint8_t {
   kSphere = 0,  // a ball of `radius` around the pose
-  kPunch = 1,   // a flat-ended cylinder of `radius`: its end face centred at the pose, pushing along
-                // `axis`
+  kPunch = 1,  // a flat-ended cylinder of `radius`: its end face centred at the pose, pushing along
+               // `axis`
 };
 enum class ContactModel : std::uint8_t {
   kNodes = 0,    // a sphere against the nodes, a penalty per node (core/step.h)
   kSurface = 1,  // the tool against the deformed surface triangles through a proxy (core/contact.h)
 };
 struct ProbeSpec {
-  double radius = 5e-3;          // m
-  double stiffness = 0;          // kNodes: N/m per node, 0: from node masses and the step;
-                                 // kSurface: Pa/m, the contact layer's pressure per metre of
-                                 // penetration, 0: from the tissue (kContactStiffnessFactor E* / R)
+  double radius = 5e-3;  // m
+  double stiffness = 0;  // kNodes: N/m per node, 0: from node masses and the step;
+                         // kSurface: Pa/m, the contact layer's pressure per metre of
+                         // penetration, 0: from the tissue (kContactStiffnessFactor E* / R)
   ContactModel contact = ContactModel::kNodes;
   ToolShape shape = ToolShape::kSphere;
   Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, punch: the direction it pushes along
-  double coupling = 0;           // kSurface: N/m, virtual coupling device-proxy; 0: kCouplingFactor
-                                 // E* R
-  double friction = 0;           // kSurface: Coulomb coefficient mu (>= 0), stick and slip
+  double coupling = 0;  // kSurface: N/m, virtual coupling device-proxy; 0: kCouplingFactor
+                        // E* R
+  double friction = 0;  // kSurface: Coulomb coefficient mu (>= 0), stick and slip
 };
 
 // A rigid half-space {x : n.x >= offset} that nodes cannot enter (compression plates).
 struct PlaneSpec {
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit, points into the free side
-  double offset = 0;             // m
-  double stiffness = 0;          // N/m per node penalty; 0: chosen from masses and dt
+  double offset = 0;                                  // m
+  double stiffness = 0;  // N/m per node penalty; 0: chosen from masses and dt
 };
 
 struct Model {
   // Nodes (num_nodes).
-  std::vector<Vec3> rest;            // m
-  std::vector<double> mass;          // kg
-  std::vector<double> inv_mass;      // 1/kg, 0 for nodes fixed on all axes
-  std::vector<std::uint8_t> fixed;   // axis mask: bit 0 x, 1 y, 2 z; 7: the node never moves
-  std::vector<Vec3> free_axes;       // 1 on axes the node may move along, 0 on fixed ones
+  std::vector<Vec3> rest;           // m
+  std::vector<double> mass;         // kg
+  std::vector<double> inv_mass;     // 1/kg, 0 for nodes fixed on all axes
+  std::vector<std::uint8_t> fixed;  // axis mask: bit 0 x, 1 y, 2 z; 7: the node never moves
+  std::vector<Vec3> free_axes;      // 1 on axes the node may move along, 0 on fixed ones
 
   // Springs (num_springs), sorted by group.
   std::vector<int> spring_i, spring_j;
@@ -138,32 +137,32 @@ struct Model {
   std::vector<std::array<int, 8>> hexahedra;
   std::vector<std::array<int, 3>> surface;  // outward triangles
   std::vector<int> surface_nodes;
-  std::vector<Vec3> normal;                 // (num_nodes) outward unit normal at rest on the
-                                            // surface, zero inside
+  std::vector<Vec3> normal;  // (num_nodes) outward unit normal at rest on the
+                             // surface, zero inside
 
   // Volume stiffness (core/volume.h): with bulk_modulus > 0 every tetrahedron and hexahedron
   // stores (kappa / (2 |V0|)) (V - V0)^2.
-  double bulk_modulus = 0;                  // Pa, kappa; 0: pair springs only
-  std::vector<double> tet_rest_volume;      // (tetrahedra) signed V0, m^3, when kappa > 0
-  std::vector<double> hex_rest_volume;      // (hexahedra) signed trilinear V0, m^3, when kappa > 0
+  double bulk_modulus = 0;              // Pa, kappa; 0: pair springs only
+  std::vector<double> tet_rest_volume;  // (tetrahedra) signed V0, m^3, when kappa > 0
+  std::vector<double> hex_rest_volume;  // (hexahedra) signed trilinear V0, m^3, when kappa > 0
   // Gauss-point spread: a hexahedron's volume constraint leaves the modes that move volume
   // between its Gauss points free (hourglass modes: layers that alternately bulge and narrow).
   // With spread_modulus > 0 each hexahedron also stores (kappa_s / (2 |V0| / 8)) sum_q d_q^2,
   // d_q = (v_q - v0_q) - (V - V0) / 8, its Gauss-point shares' departure from a uniform change.
-  double spread_modulus = 0;                // Pa, kappa_s
-  std::vector<double> hex_rest_gauss;       // (8 hexahedra) v0_q, m^3, when kappa_s > 0
+  double spread_modulus = 0;           // Pa, kappa_s
+  std::vector<double> hex_rest_gauss;  // (8 hexahedra) v0_q, m^3, when kappa_s > 0
   // Shear stiffness (core/volume.h): isochoric neo-Hookean per tetrahedron and per Gauss point
   // of a hexahedron, with shape-function gradients at rest (tetrahedra 4 each, then hexahedra
   // 64 each, point-major) and rest volume shares |v0| (1 per tetrahedron, 8 per hexahedron).
-  double shear_modulus = 0;                 // Pa, mu; 0: none
-  std::vector<Vec3> shear_b;                // 1/m
-  std::vector<double> shear_v0;             // m^3
+  double shear_modulus = 0;      // Pa, mu; 0: none
+  std::vector<Vec3> shear_b;     // 1/m
+  std::vector<double> shear_v0;  // m^3
 
   std::vector<ProbeSpec> probes;
   std::vector<PlaneSpec> planes;
   SolverOptions options;
   Mapping mapping = Mapping::kStrain;
-  double contact_modulus = 0;               // Pa, E* of the body (core/contact.h), set at build
+  double contact_modulus = 0;  // Pa, E* of the body (core/contact.h), set at build
 
   int num_nodes() const { return static_cast<int>(rest.size()); }
   int num_springs() const { return static_cast<int>(rest_length.size()); }
@@ -172,34 +171,34 @@ struct Model {
 
 // Live pose of a probe and what the body does to it.
 struct ProbeState {
-  Vec3 center = Vec3::Zero();      // m, the device target the client sets
-  double radius = 0;               // m (0: the model's)
-  bool active = false;             // a probe far away or never placed does nothing
-  Vec3 force = Vec3::Zero();       // N, on the device: the coupling force k_vc (proxy - center)
-  Mat3 stiffness = Mat3::Zero();   // N/m, d force / d center with nodes held
-  int contacts = 0;                // surface triangles in contact
+  Vec3 center = Vec3::Zero();     // m, the device target the client sets
+  double radius = 0;              // m (0: the model's)
+  bool active = false;            // a probe far away or never placed does nothing
+  Vec3 force = Vec3::Zero();      // N, on the device: the coupling force k_vc (proxy - center)
+  Mat3 stiffness = Mat3::Zero();  // N/m, d force / d center with nodes held
+  int contacts = 0;               // surface triangles in contact
   // The proxy (core/contact.h): the pose the tool takes in the body's world.
-  Vec3 proxy = Vec3::Zero();       // m
-  bool proxy_placed = false;       // false until the first update after activation
-  double depth = 0;                // m, deepest penetration of the tool into the deformed surface
-  int anchor = -1;                 // surface triangle nearest the proxy (-1: none in reach)
-  Vec3 anchor_bary = Vec3::Zero(); // barycentric coordinates of the nearest point on it
+  Vec3 proxy = Vec3::Zero();        // m
+  bool proxy_placed = false;        // false until the first update after activation
+  double depth = 0;                 // m, deepest penetration of the tool into the deformed surface
+  int anchor = -1;                  // surface triangle nearest the proxy (-1: none in reach)
+  Vec3 anchor_bary = Vec3::Zero();  // barycentric coordinates of the nearest point on it
   Vec3 anchor_offset = Vec3::Zero();  // proxy - that point in the triangle's frame (its two edge
                                       // vectors from node 0 and its unit normal)
   // Friction (probe friction > 0): the stick point, carried like the anchor, and the tangential
   // force the tool exerts on the body there.
-  int stick = -1;                  // surface triangle of the stick point (-1: none)
+  int stick = -1;  // surface triangle of the stick point (-1: none)
   Vec3 stick_bary = Vec3::Zero();
   Vec3 stick_offset = Vec3::Zero();
   Vec3 friction_force = Vec3::Zero();  // N, on the body at the stick point
   Vec3 contact_normal = Vec3::Zero();  // unit, the layer's force on the tool (friction only)
-  double friction_limit = 0;       // N, mu times the normal force
-  bool sliding = false;            // the last update slipped
+  double friction_limit = 0;           // N, mu times the normal force
+  bool sliding = false;                // the last update slipped
 };
 
 struct PlaneState {
-  double offset = 0;               // m, current offset (plates move)
-  Vec3 force = Vec3::Zero();       // N, on the plate
+  double offset = 0;          // m, current offset (plates move)
+  Vec3 force = Vec3::Zero();  // N, on the plate
   int contacts = 0;
 };
 
@@ -215,12 +214,12 @@ struct Counters {
 };
 
 struct State {
-  double time = 0;                   // s
+  double time = 0;  // s
   std::uint64_t tick = 0;
-  std::vector<Vec3> x, v;            // (num_nodes) m, m/s
-  std::vector<double> maxwell;       // (num_springs) Maxwell dashpot deflection, card units
-  std::vector<ProbeState> probes;    // (model.probes.size())
-  std::vector<PlaneState> planes;    // (model.planes.size())
+  std::vector<Vec3> x, v;          // (num_nodes) m, m/s
+  std::vector<double> maxwell;     // (num_springs) Maxwell dashpot deflection, card units
+  std::vector<ProbeState> probes;  // (model.probes.size())
+  std::vector<PlaneState> planes;  // (model.planes.size())
   Counters counters;
 };
 

@@ -1,17 +1,15 @@
-#include "core/step_detail.h"
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <limits>
 
 #include "core/body.h"
 #include "core/contact.h"
+#include "core/step_detail.h"
 #include "core/volume.h"
-
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
-
-#include <algorithm>
-#include <bit>
-#include <cstdint>
-#include <cmath>
-#include <limits>
 
 namespace conica {
 namespace {
@@ -29,10 +27,9 @@ double room_of(std::int64_t bits) {
 // End-to-end vectors of every spring gathered from node-major positions X (num_nodes x 3) into
 // (dx, dy, dz), for springs not in runs; normalise_chunk then turns them into geometry. Kept out
 // of line so the compiler sees raw doubles, not Eigen storage, and emits gathers.
-[[gnu::noinline]] void gather_vectors(int ns, const double* __restrict X,
-                                      const int* __restrict si, const int* __restrict sj,
-                                      double* __restrict dx, double* __restrict dy,
-                                      double* __restrict dz) {
+[[gnu::noinline]] void gather_vectors(int ns, const double* __restrict X, const int* __restrict si,
+                                      const int* __restrict sj, double* __restrict dx,
+                                      double* __restrict dy, double* __restrict dz) {
   for (int k = 0; k < ns; ++k) {
     const int i = 3 * si[k], j = 3 * sj[k];
     dx[k] = X[j] - X[i];
@@ -61,10 +58,9 @@ double room_of(std::int64_t bits) {
 // returns the smallest room to the hard stop (as bits, see kNoRoom).
 [[gnu::noinline]] std::int64_t normalise_chunk(int n, const double* __restrict l0,
                                                const double* __restrict b,
-                                               const double* __restrict lmin,
-                                               double* __restrict ux, double* __restrict uy,
-                                               double* __restrict uz, double* __restrict len,
-                                               double* __restrict defl) {
+                                               const double* __restrict lmin, double* __restrict ux,
+                                               double* __restrict uy, double* __restrict uz,
+                                               double* __restrict len, double* __restrict defl) {
   std::int64_t slack = kNoRoom;
   for (int t = 0; t < n; ++t) {
     const double dx = ux[t], dy = uy[t], dz = uz[t];
@@ -98,12 +94,11 @@ double room_of(std::int64_t bits) {
 
 // Both ends at once, for a run whose two node ranges [i, i + n) and [j, j + n) do not overlap.
 [[gnu::noinline]] void scatter_run_pair(int n, const double* __restrict a,
-                                        const double* __restrict load,
-                                        const double* __restrict ux, const double* __restrict uy,
-                                        const double* __restrict uz, double* __restrict fxi,
-                                        double* __restrict fyi, double* __restrict fzi,
-                                        double* __restrict fxj, double* __restrict fyj,
-                                        double* __restrict fzj) {
+                                        const double* __restrict load, const double* __restrict ux,
+                                        const double* __restrict uy, const double* __restrict uz,
+                                        double* __restrict fxi, double* __restrict fyi,
+                                        double* __restrict fzi, double* __restrict fxj,
+                                        double* __restrict fyj, double* __restrict fzj) {
   for (int t = 0; t < n; ++t) {
     const double c = a[t] * load[t];
     const double gx = c * ux[t], gy = c * uy[t], gz = c * uz[t];
@@ -140,7 +135,7 @@ double room_of(std::int64_t bits) {
       const int k = 3 * i + c;
       const double a = F[k] * inv_mass[i] * free[k];
       if (symplectic) {
-        V[k] += h * a;            // eq. (22)
+        V[k] += h * a;               // eq. (22)
         X[k] += h * V[k] * free[k];  // eq. (23)
       } else {
         X[k] += h * V[k] * free[k];
@@ -156,7 +151,8 @@ double room_of(std::int64_t bits) {
   int bad = 0, quick = 0;
   for (int k = 0; k < 3 * nn; ++k) bad += !(X[k] * 0.0 == 0.0) + !(V[k] * 0.0 == 0.0);
   for (int i = 0; i < nn; ++i)
-    quick += V[3 * i] * V[3 * i] + V[3 * i + 1] * V[3 * i + 1] + V[3 * i + 2] * V[3 * i + 2] > vmax2;
+    quick +=
+        V[3 * i] * V[3 * i] + V[3 * i + 1] * V[3 * i + 1] + V[3 * i + 2] * V[3 * i + 2] > vmax2;
   *nonfinite = bad;
   *fast = quick;
 }
@@ -230,7 +226,7 @@ void group_loads(const Model& m, const State& s, const SpringGroup& g, int k0, i
 }
 
 SpringValues values_at(Workspace& ws, int k) {
-  return {ws.ux.data() + k,      ws.uy.data() + k,   ws.uz.data() + k,     ws.length.data() + k,
+  return {ws.ux.data() + k,         ws.uy.data() + k,   ws.uz.data() + k,     ws.length.data() + k,
           ws.deflection.data() + k, ws.load.data() + k, ws.tangent.data() + k};
 }
 
@@ -258,29 +254,28 @@ void chunk_forces(const Model& m, const State& s, Workspace& ws, const Workspace
   double* const fx = out ? out[0] : ws.fx.data();
   double* const fy = out ? out[1] : ws.fy.data();
   double* const fz = out ? out[2] : ws.fz.data();
-  const SpringValues v = keep ? values_at(ws, c.k0)
-                              : SpringValues{ws.chunk_ux.data(),     ws.chunk_uy.data(),
-                                             ws.chunk_uz.data(),     ws.chunk_length.data(),
-                                             ws.chunk_deflection.data(), ws.chunk_load.data(),
-                                             ws.chunk_tangent.data()};
+  const SpringValues v =
+      keep ? values_at(ws, c.k0)
+           : SpringValues{ws.chunk_ux.data(),     ws.chunk_uy.data(),         ws.chunk_uz.data(),
+                          ws.chunk_length.data(), ws.chunk_deflection.data(), ws.chunk_load.data(),
+                          ws.chunk_tangent.data()};
   for (int q = c.first_run; q < c.last_run; ++q) {
     const Workspace::Run& r = ws.runs[q];
     const int t = r.k - c.k0;
-    run_vectors(r.n, ws.px.data() + r.i, ws.py.data() + r.i, ws.pz.data() + r.i,
-                ws.px.data() + r.j, ws.py.data() + r.j, ws.pz.data() + r.j, v.ux + t, v.uy + t,
-                v.uz + t);
+    run_vectors(r.n, ws.px.data() + r.i, ws.py.data() + r.i, ws.pz.data() + r.i, ws.px.data() + r.j,
+                ws.py.data() + r.j, ws.pz.data() + r.j, v.ux + t, v.uy + t, v.uz + t);
   }
-  *slack = std::min(*slack, normalise_chunk(c.k1 - c.k0, m.rest_length.data() + c.k0,
-                                          m.deflection_scale.data() + c.k0,
-                                          ws.min_length.data() + c.k0, v.ux, v.uy, v.uz,
-                                          v.length, v.deflection));
+  *slack = std::min(
+      *slack,
+      normalise_chunk(c.k1 - c.k0, m.rest_length.data() + c.k0, m.deflection_scale.data() + c.k0,
+                      ws.min_length.data() + c.k0, v.ux, v.uy, v.uz, v.length, v.deflection));
   group_loads(m, s, m.groups[c.group], c.k0, c.k1, v);
   for (int q = c.first_run; q < c.last_run; ++q) {
     const Workspace::Run& r = ws.runs[q];
     const int t = r.k - c.k0;
     if (r.j - r.i >= r.n) {
-      scatter_run_pair(r.n, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t, fx + r.i,
-                       fy + r.i, fz + r.i, fx + r.j, fy + r.j, fz + r.j);
+      scatter_run_pair(r.n, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t, fx + r.i, fy + r.i,
+                       fz + r.i, fx + r.j, fy + r.j, fz + r.j);
       continue;
     }
     for (const auto& [node, sign] : {std::pair{r.i, -1.0}, std::pair{r.j, 1.0}})
@@ -475,8 +470,8 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
     if (!p.active || !p.proxy_placed) continue;
     const std::vector<int>& cand = ws.probe_candidates[q];
     ToolContact c;
-    tool_contact(m, static_cast<int>(q), p.radius > 0 ? p.radius : m.probes[q].radius, p.proxy,
-                 s.x, cand.data(), static_cast<int>(cand.size()), &c, ws.force.data(),
+    tool_contact(m, static_cast<int>(q), p.radius > 0 ? p.radius : m.probes[q].radius, p.proxy, s.x,
+                 cand.data(), static_cast<int>(cand.size()), &c, ws.force.data(),
                  ws.contact_block.data());
     if (c.faces == 0) continue;
     friction_forces(m, static_cast<int>(q), p, s.x, ws.force.data(), ws.contact_block.data());
@@ -526,7 +521,8 @@ void semi_implicit_contact(const Model& m, Workspace& ws, double h) {
     const Mat3& B = ws.contact_block[i];
     if (B.squaredNorm() == 0) continue;
     const Vec3& free = m.free_axes[i];
-    const Mat3 A = m.mass[i] * Mat3::Identity() + h * h * (free.asDiagonal() * B * free.asDiagonal());
+    const Mat3 A =
+        m.mass[i] * Mat3::Identity() + h * h * (free.asDiagonal() * B * free.asDiagonal());
     ws.force[i] = m.mass[i] * A.ldlt().solve(ws.force[i]);
   }
 }
@@ -595,7 +591,8 @@ void forces_active(const Model& m, State& s, Workspace& ws) {
   if (ws.far_every > 0) return;  // the far field moves: its pull is no reason to wake
   const double f_tol = ws.node_stiffness * m.options.active_tolerance;
   for (int i = 0; i < nn; ++i)
-    if (!ws.awake[i] && m.fixed[i] != 7 && ws.force[i].squaredNorm() > f_tol * f_tol) ws.wake[i] = 1;
+    if (!ws.awake[i] && m.fixed[i] != 7 && ws.force[i].squaredNorm() > f_tol * f_tol)
+      ws.wake[i] = 1;
 }
 
 void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
@@ -619,8 +616,8 @@ void relax_maxwell(const Model& m, State& s, double h) {
     if (!(g.card.maxwell_k > 0)) continue;
     const double decay = std::exp(-h / g.card.maxwell_tau);
     for (int k = g.begin; k < g.end; ++k) {
-      const double d = m.deflection_scale[k] * (m.rest_length[k] -
-                                                (s.x[m.spring_j[k]] - s.x[m.spring_i[k]]).norm());
+      const double d = m.deflection_scale[k] *
+                       (m.rest_length[k] - (s.x[m.spring_j[k]] - s.x[m.spring_i[k]]).norm());
       s.maxwell[k] = d + (s.maxwell[k] - d) * decay;
     }
   }
@@ -642,9 +639,9 @@ void hard_stop(const Model& m, State& s, Workspace& ws) {
   // Measured along its direction at the last geometry, a spring is no shorter than its length
   // then minus the motion of its two ends since: with no node moved by half the smallest room,
   // none can be short.
-  ws.hard_stop_near = !(ws.slack > 0) || count_moved(m.num_nodes(), s.x.front().data(),
-                                                     ws.px.data(), ws.py.data(), ws.pz.data(),
-                                                     0.5 * ws.slack) > 0;
+  ws.hard_stop_near =
+      !(ws.slack > 0) || count_moved(m.num_nodes(), s.x.front().data(), ws.px.data(), ws.py.data(),
+                                     ws.pz.data(), 0.5 * ws.slack) > 0;
   if (!ws.hard_stop_near) return;
   if (!ws.directions_kept) refresh_directions(m, ws);
   if (count_short(m.num_springs(), s.x.front().data(), m.spring_i.data(), m.spring_j.data(),
@@ -705,7 +702,7 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
     if (m.fixed[i] == 7 || !ws.awake[i]) continue;
     const Vec3 a = (ws.force[i] * m.inv_mass[i]).cwiseProduct(m.free_axes[i]);
     if (symplectic) {
-      s.v[i] += h * a;   // eq. (22)
+      s.v[i] += h * a;       // eq. (22)
       s.x[i] += h * s.v[i];  // eq. (23)
     } else {
       s.x[i] += h * s.v[i];
@@ -1092,8 +1089,8 @@ double potential_energy(const Model& m, const State& s) {
     const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
     tool_contact(m, static_cast<int>(q), R, p.proxy, s.x, nullptr, 0, &c);
     // The layer and the virtual coupling between the device and the proxy.
-    e += c.energy + 0.5 * coupling_stiffness(m, static_cast<int>(q), R) *
-                        (p.proxy - p.center).squaredNorm();
+    e += c.energy +
+         0.5 * coupling_stiffness(m, static_cast<int>(q), R) * (p.proxy - p.center).squaredNorm();
   }
   for (size_t q = 0; q < m.planes.size(); ++q)
     for (const Vec3& x : s.x) {
@@ -1243,7 +1240,7 @@ void update_region(const Model& m, State& s, Workspace& ws) {
     const std::uint8_t now = near || ws.wake[i] || (ws.awake[i] && keep);
     if (now != ws.awake[i]) {
       changed = true;
-      ws.flipped.push_back(i);  // capacity reserved for every node
+      ws.flipped.push_back(i);                          // capacity reserved for every node
       if (!now && ws.far_every <= 0) s.v[i].setZero();  // frozen: falls asleep at its state
       ws.awake[i] = now;
     }
@@ -1467,9 +1464,15 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
   const double h = detail::substep_of(m);
   for (int sub = 0; sub < m.options.substeps; ++sub) {
     switch (m.options.integrator) {
-      case Integrator::kSymplecticEuler: integrate_explicit(m, s, ws, true); break;
-      case Integrator::kExplicitEuler: integrate_explicit(m, s, ws, false); break;
-      case Integrator::kImplicitEuler: detail::integrate_implicit(m, s, ws); break;
+      case Integrator::kSymplecticEuler:
+        integrate_explicit(m, s, ws, true);
+        break;
+      case Integrator::kExplicitEuler:
+        integrate_explicit(m, s, ws, false);
+        break;
+      case Integrator::kImplicitEuler:
+        detail::integrate_implicit(m, s, ws);
+        break;
     }
     hard_stop(m, s, ws);
     relax_maxwell(m, s, h);
@@ -1488,8 +1491,7 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
     std::copy(ws.good_x.begin(), ws.good_x.end(), s.x.begin());
   }
   std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
-  if (ws.has_maxwell)
-    std::copy(ws.good_maxwell.begin(), ws.good_maxwell.end(), s.maxwell.begin());
+  if (ws.has_maxwell) std::copy(ws.good_maxwell.begin(), ws.good_maxwell.end(), s.maxwell.begin());
   ++s.counters.rollbacks;
   return StepStatus::kRolledBack;
 }

@@ -14,7 +14,8 @@
 // Maxwell dashpot: e_m relaxes to delta with time constant tau, updated exactly per step:
 //   e_m <- delta + (e_m - delta) exp(-h / tau).
 // Contact with probes, by the probe's contact model.
-// ContactModel::kNodes (the default): per node inside a sphere of radius R around c (u = x - c, r = |u|):
+// ContactModel::kNodes (the default): per node inside a sphere of radius R around c (u = x - c, r =
+// |u|):
 //   surface node with outward normal n: it leaves the sphere inward along -n by
 //     e = a + sqrt(a^2 - r^2 + R^2), a = u.n  (so the probe is pushed out of the body even after
 //     slipping between surface nodes);  f_node = -k_c s n with the depth
@@ -29,14 +30,14 @@
 //   probe force = -sum f_node, and its 3x3 stiffness d(probe force)/dc (nodes held) exactly.
 // The surface potential's force is not its gradient (the normal direction is fixed per node): a
 // penalty of this form is not conservative in tangential motion, which the energy checks allow.
-// ContactModel::kSurface: rigid tools against the deformed surface through a proxy (core/contact.h).
-// At the start of a tick each probe's proxy moves toward its device target with the nodes held
-// (the proxy stage); the body then steps with the tools held at their proxies, the contact
-// layer's forces on the surface triangles' nodes in its forces. Explicit integrators take the
-// contact layer semi-implicitly: a node in contact advances with the force
-// m (m I + h^2 B)^-1 f, B its lumped layer stiffness, which bounds the layer's stiffness from
-// above, so the stiff layer never limits the step (the equilibrium is the same: f = 0 there).
-// Rigid planes {n.x >= offset}: f_node = k_p (offset - n.x) n for nodes behind the plane.
+// ContactModel::kSurface: rigid tools against the deformed surface through a proxy
+// (core/contact.h). At the start of a tick each probe's proxy moves toward its device target with
+// the nodes held (the proxy stage); the body then steps with the tools held at their proxies, the
+// contact layer's forces on the surface triangles' nodes in its forces. Explicit integrators take
+// the contact layer semi-implicitly: a node in contact advances with the force m (m I + h^2 B)^-1
+// f, B its lumped layer stiffness, which bounds the layer's stiffness from above, so the stiff
+// layer never limits the step (the equilibrium is the same: f = 0 there). Rigid planes {n.x >=
+// offset}: f_node = k_p (offset - n.x) n for nodes behind the plane.
 //
 // Active region (options.active_region, explicit integrators): a probe pressing with force P moves
 // the surface of an elastic half-space by about u(r) = P (1 - nu^2) / (pi E r) at distance r
@@ -67,8 +68,8 @@
 // A region that grows until a multi-rate tick costs about a whole step (options.
 // active_whole_body_cost of it, 0.85 by default, estimated from the springs the awake side and one
 // far share evaluate) is dropped: the whole body steps every tick, as without the active region,
-// until the estimate falls below kRegionResumeFraction of that, checked every tick; the switch is made at an interval's start, where no far
-// share or impulse is pending, so it is exact.
+// until the estimate falls below kRegionResumeFraction of that, checked every tick; the switch is
+// made at an interval's start, where no far share or impulse is pending, so it is exact.
 //
 // Solid height: the law's stiffness cap (ConicalLaw) keeps k_t finite, and a hard stop projects
 // any spring shorter than max(l0 - S/b, min_length_fraction l0) back to that length, removing
@@ -97,7 +98,7 @@ struct Workspace {
   struct Run {
     int k, n, i, j;
   };
-  std::vector<Run> runs;                          // cut at groups, at most 256 springs each
+  std::vector<Run> runs;  // cut at groups, at most 256 springs each
   // Consecutive runs of one group, about 256 springs: geometry, law and scatter run chunk by
   // chunk. Runs [first_run, last_run), springs [k0, k1).
   struct Chunk {
@@ -110,76 +111,76 @@ struct Workspace {
   std::vector<double> chunk_ux, chunk_uy, chunk_uz, chunk_length, chunk_deflection, chunk_load,
       chunk_tangent;
   bool directions_kept = true;
-  bool hard_stop_near = false;  // the last hard-stop test could not rule out a short spring
-  std::vector<double> px, py, pz;                 // (num_nodes) m, positions at the last geometry
-  std::vector<double> fx, fy, fz;                 // (num_nodes) N, spring forces being summed
+  bool hard_stop_near = false;     // the last hard-stop test could not rule out a short spring
+  std::vector<double> px, py, pz;  // (num_nodes) m, positions at the last geometry
+  std::vector<double> fx, fy, fz;  // (num_nodes) N, spring forces being summed
   // Smallest length - min_length over springs at the last geometry (m): while no node has moved
   // by more than half of it, no spring can be short, and the hard-stop pass is skipped.
   double slack = -1;
   // Implicit solver (implicit.cc). Node vectors named sys_* are component-major: entry c n + i
   // is component c of node i; sys_diag and sys_pre hold six such entries (00 11 22 01 02 12).
-  std::vector<double> alpha, beta;                // (num_springs) system coefficients
+  std::vector<double> alpha, beta;  // (num_springs) system coefficients
   // Contact (core/contact.h). Planes: normal * sqrt(h^2 k_p) per node behind a plate (implicit
   // only). Probes: each node's lumped layer stiffness (N/m), what the implicit system and the
   // explicit integrators' semi-implicit contact update use. The first num_contact_nodes entries of
   // contact_nodes list the nodes with either (in_contact flags them).
-  std::vector<Vec3> contact_n;                    // (num_nodes)
-  std::vector<Mat3> contact_block;                // (num_nodes) N/m
-  std::vector<int> contact_nodes;                 // (num_nodes)
-  std::vector<std::uint8_t> in_contact;           // (num_nodes)
+  std::vector<Vec3> contact_n;           // (num_nodes)
+  std::vector<Mat3> contact_block;       // (num_nodes) N/m
+  std::vector<int> contact_nodes;        // (num_nodes)
+  std::vector<std::uint8_t> in_contact;  // (num_nodes)
   int num_contact_nodes = 0;
-  double sys_h2 = 0;                              // s^2, h^2 of the implicit system being solved
+  double sys_h2 = 0;                               // s^2, h^2 of the implicit system being solved
   std::vector<std::vector<int>> probe_candidates;  // (probes) surface triangles near each proxy,
                                                    // capacity reserved for every triangle
-  std::vector<Vec3> x0, v0;                       // (num_nodes) state at the step's start
-  std::vector<double> sys_mass;                   // (num_nodes) kg, m (1 + h mu)
-  std::vector<double> sys_free;                   // (3 num_nodes) 1 on free axes, 0 on fixed
-  std::vector<double> sys_diag, sys_pre;          // (6 num_nodes) diagonal blocks, inverses
+  std::vector<Vec3> x0, v0;                        // (num_nodes) state at the step's start
+  std::vector<double> sys_mass;                    // (num_nodes) kg, m (1 + h mu)
+  std::vector<double> sys_free;                    // (3 num_nodes) 1 on free axes, 0 on fixed
+  std::vector<double> sys_diag, sys_pre;           // (6 num_nodes) diagonal blocks, inverses
   std::vector<double> sys_rhs, sys_r, sys_z, sys_p, sys_ap, sys_dx;  // (3 num_nodes) PCG
-  std::vector<double> sys_chunk;                  // (6 kChunkSprings) a chunk's products/blocks
+  std::vector<double> sys_chunk;  // (6 kChunkSprings) a chunk's products/blocks
   // Active region.
-  std::vector<std::uint8_t> awake, wake;          // (num_nodes)
-  std::vector<int> active;                        // (num_springs) springs with an awake end
-  std::vector<int> spring_group;                  // (num_springs) group of each spring
-  std::vector<double> active_scale;               // (num_springs) force_scale, 0 if both ends sleep
-  std::vector<std::uint8_t> chunk_awake;          // (chunks) a spring of the chunk has an awake end
-  int num_active = -1;                            // -1: region not built yet
-  double modulus = 0;                             // Pa, network estimate
-  double node_stiffness = 0;                      // N/m, mean axial stiffness per node
+  std::vector<std::uint8_t> awake, wake;  // (num_nodes)
+  std::vector<int> active;                // (num_springs) springs with an awake end
+  std::vector<int> spring_group;          // (num_springs) group of each spring
+  std::vector<double> active_scale;       // (num_springs) force_scale, 0 if both ends sleep
+  std::vector<std::uint8_t> chunk_awake;  // (chunks) a spring of the chunk has an awake end
+  int num_active = -1;                    // -1: region not built yet
+  double modulus = 0;                     // Pa, network estimate
+  double node_stiffness = 0;              // N/m, mean axial stiffness per node
   // Multi-rate far field.
-  int far_every = 0;                              // N ticks per far step; 0: frozen far field
-  int far_max_every = 1;                          // the far field's stability bound on N
-                                                  // (Gershgorin, lightest node)
-  int measured_every = 0;                         // the bound from the measured spectrum (0: not
-                                                  // measured: frozen or no active region)
-  double far_lambda = 0;                          // 1/s^2, largest eigenvalue of M^-1 K measured
-  double far_gamma = 0;                           // 1/s, the far step's explicit damping bound
-  double far_raise = 1;                           // inertia factor of every far node (measured)
-  int far_phase = 0;                              // ticks into the current interval
-  std::vector<int> awake_list;                    // awake nodes
-  std::vector<int> border;                        // sleeping nodes an awake spring touches
-  std::vector<std::uint8_t> in_border;            // (num_nodes)
-  std::vector<Vec3> impulse;                      // (num_nodes) N s from awake springs, this interval
-  std::vector<double> slow_scale;                 // (num_springs) force_scale if both ends sleep
-  std::vector<int> slow;                          // springs with both ends asleep (no runs)
-  std::vector<std::uint8_t> chunk_slow;           // (chunks) a spring of the chunk has both asleep
-  std::vector<double> far_inv_mass;               // (num_nodes) 1/kg, inertia of a far step
-  std::vector<double> far_fx, far_fy, far_fz;     // (num_nodes) N, far springs' forces of this
-                                                  // interval, summed over its ticks
-  int far_springs_evaluated = 0;                  // springs the last tick's far share evaluated
-  double region_cost = 0;                         // the last estimate of a multi-rate tick's cost
-                                                  // (fraction of a whole step)
-  bool whole_body = false;                        // the region costs about a whole step: every
-                                                  // node steps every tick (multi-rate only)
+  int far_every = 0;                           // N ticks per far step; 0: frozen far field
+  int far_max_every = 1;                       // the far field's stability bound on N
+                                               // (Gershgorin, lightest node)
+  int measured_every = 0;                      // the bound from the measured spectrum (0: not
+                                               // measured: frozen or no active region)
+  double far_lambda = 0;                       // 1/s^2, largest eigenvalue of M^-1 K measured
+  double far_gamma = 0;                        // 1/s, the far step's explicit damping bound
+  double far_raise = 1;                        // inertia factor of every far node (measured)
+  int far_phase = 0;                           // ticks into the current interval
+  std::vector<int> awake_list;                 // awake nodes
+  std::vector<int> border;                     // sleeping nodes an awake spring touches
+  std::vector<std::uint8_t> in_border;         // (num_nodes)
+  std::vector<Vec3> impulse;                   // (num_nodes) N s from awake springs, this interval
+  std::vector<double> slow_scale;              // (num_springs) force_scale if both ends sleep
+  std::vector<int> slow;                       // springs with both ends asleep (no runs)
+  std::vector<std::uint8_t> chunk_slow;        // (chunks) a spring of the chunk has both asleep
+  std::vector<double> far_inv_mass;            // (num_nodes) 1/kg, inertia of a far step
+  std::vector<double> far_fx, far_fy, far_fz;  // (num_nodes) N, far springs' forces of this
+                                               // interval, summed over its ticks
+  int far_springs_evaluated = 0;               // springs the last tick's far share evaluated
+  double region_cost = 0;                      // the last estimate of a multi-rate tick's cost
+                                               // (fraction of a whole step)
+  bool whole_body = false;                     // the region costs about a whole step: every
+                                               // node steps every tick (multi-rate only)
   // Incremental region updates (lattices, multi-rate).
   std::vector<int> node_spring_start, node_springs;  // (num_nodes + 1), (2 num_springs): springs
                                                      // of node i: [start[i], start[i + 1])
-  std::vector<int> flipped;                       // nodes that changed side in this update
-  std::vector<std::uint8_t> spring_on;            // (num_springs) the spring has an awake end
-  std::vector<int> spring_chunk;                  // (num_springs) its chunk (runs path)
-  std::vector<int> chunk_active_count;            // (chunks) springs with an awake end
-  std::vector<double> tangent_limit;              // (groups) card units: far springs beyond wake
-  bool has_maxwell = false;                       // a group has a Maxwell branch
+  std::vector<int> flipped;                          // nodes that changed side in this update
+  std::vector<std::uint8_t> spring_on;               // (num_springs) the spring has an awake end
+  std::vector<int> spring_chunk;                     // (num_springs) its chunk (runs path)
+  std::vector<int> chunk_active_count;               // (chunks) springs with an awake end
+  std::vector<double> tangent_limit;                 // (groups) card units: far springs beyond wake
+  bool has_maxwell = false;                          // a group has a Maxwell branch
   // Volume stiffness (model.bulk_modulus > 0): dV/dx of every element node at the last force
   // evaluation, tetrahedra first (4 each), then hexahedra (8 each), and kappa / |V0| per element
   // in the same order (the implicit system adds h^2 kappa / |V0| g g^T per element).
@@ -206,9 +207,9 @@ struct Workspace {
 // (N dt)^2 lambda / s + 2 N dt gamma(s) <= 1.8^2 for an inertia factor s <= 1.1 on every far node
 // (symplectic Euler with explicit damping gamma = mass_damping + max(c / K0) lambda / s is stable
 // below 4; 0.9 margin on H omega); up to that N the far nodes take that uniform s (the smallest
-// that meets the bound) and no per-node raise; when the typical node's Gershgorin interval is longer (a
-// mesh whose few light, stiff nodes set the spectrum) that one is kept, with raised inertia.
-// Allocates: for building a Workspace only.
+// that meets the bound) and no per-node raise; when the typical node's Gershgorin interval is
+// longer (a mesh whose few light, stiff nodes set the spectrum) that one is kept, with raised
+// inertia. Allocates: for building a Workspace only.
 double far_spectral_bound(const Model& model);
 
 // Forces on every node at (state.x, state.v): springs, dampers, Maxwell branches, element

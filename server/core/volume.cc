@@ -1,7 +1,6 @@
 #include "core/volume.h"
 
 #include <Eigen/LU>
-
 #include <cmath>
 
 namespace conica {

@@ -27,7 +27,6 @@
 #pragma once
 
 #include <Eigen/Geometry>
-
 #include <vector>
 
 #include "core/mesh.h"

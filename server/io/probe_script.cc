@@ -75,7 +75,8 @@ Result<std::vector<ProbeScriptRow>> parse_probe_rows(std::string_view text, cons
     while (lead < line.size() && blank(line[lead])) ++lead;
     if (lead == line.size() || line[lead] == '#') continue;
     auto at = [&](int column, const std::string& what) {
-      return Error{name + ":" + std::to_string(line_no) + ":" + std::to_string(column) + ": " + what};
+      return Error{name + ":" + std::to_string(line_no) + ":" + std::to_string(column) + ": " +
+                   what};
     };
     const std::vector<Field> f = split(line);
     if (first) {
@@ -83,7 +84,8 @@ Result<std::vector<ProbeScriptRow>> parse_probe_rows(std::string_view text, cons
       const bool is_header = f.size() == 5 && f[0].text == "t" && f[1].text == "probe" &&
                              f[2].text == "x" && f[3].text == "y" && f[4].text == "z";
       if (format.header_required) {
-        if (!is_header) return at(static_cast<int>(lead) + 1, std::string("expected the header ") + kHeader);
+        if (!is_header)
+          return at(static_cast<int>(lead) + 1, std::string("expected the header ") + kHeader);
         continue;
       }
       if (line[lead] == 't') continue;  // an optional header ("t,probe,x,y,z", "time,...")

@@ -39,7 +39,8 @@ struct ProbeScriptFormat {
   // Per probe: t must increase (true) or only not go backwards (false).
   bool strictly_increasing = true;
   int max_probe = 63;  // largest probe index accepted
-  // |x|, |y|, |z| above this are refused as "not in metres" (a millimetre file); infinity: no check.
+  // |x|, |y|, |z| above this are refused as "not in metres" (a millimetre file); infinity: no
+  // check.
   double max_abs_position_m = std::numeric_limits<double>::infinity();
 };
 
@@ -54,7 +55,7 @@ Result<std::vector<ProbeScriptRow>> read_probe_rows(const std::string& path,
                                                     const ProbeScriptFormat& format = {});
 
 struct Keyframe {
-  double t = 0;   // s
+  double t = 0;  // s
   Vec3 x = Vec3::Zero();
 };
 

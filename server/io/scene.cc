@@ -19,7 +19,6 @@ namespace {
 // need about 100 GB. 100,000 cells (about 1.4 million springs) is five times the 20k-node block.
 constexpr long kMaxGeneratedCells = 100000;
 
-
 namespace pb = google::protobuf;
 
 // Collects the text parser's first error with its position.
@@ -123,7 +122,8 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     const auto& c = scene.cylinder();
     if (!(c.radius() > 0) || !(c.height() > 0) || !std::isfinite(c.radius() + c.height()))
       return Error{loc.at("cylinder") + "cylinder radius and height must be > 0 m"};
-    if (c.cells_across() < 1 || c.cells_across() > 400 || c.cells_high() < 1 || c.cells_high() > 400)
+    if (c.cells_across() < 1 || c.cells_across() > 400 || c.cells_high() < 1 ||
+        c.cells_high() > 400)
       return Error{loc.at("cylinder") + "cylinder cells_across and cells_high must be in 1..400"};
     const long cells = static_cast<long>(c.cells_across()) * c.cells_across() * c.cells_high();
     if (cells > kMaxGeneratedCells)
@@ -173,17 +173,21 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     const auto& gs = scene.group(g);
     SpringGroupSpec spec;
     spec.name = gs.name().empty() ? "group" + std::to_string(g) : gs.name();
-    const std::string where = loc.at("group", g) + "group " + std::to_string(g) + " (\"" +
-                              spec.name + "\"): ";
+    const std::string where =
+        loc.at("group", g) + "group " + std::to_string(g) + " (\"" + spec.name + "\"): ";
     const std::string e = convert_card(gs.card(), &spec.card);
     if (!e.empty()) return Error{where + e};
     if (gs.families_size() > 0) {
       spec.families = 0;
       for (int f : gs.families()) {
-        if (f == v1::EDGE) spec.families |= kEdge;
-        else if (f == v1::FACE_DIAGONAL) spec.families |= kFaceDiagonal;
-        else if (f == v1::BODY_DIAGONAL) spec.families |= kBodyDiagonal;
-        else return Error{where + "unknown spring family"};
+        if (f == v1::EDGE)
+          spec.families |= kEdge;
+        else if (f == v1::FACE_DIAGONAL)
+          spec.families |= kFaceDiagonal;
+        else if (f == v1::BODY_DIAGONAL)
+          spec.families |= kBodyDiagonal;
+        else
+          return Error{where + "unknown spring family"};
       }
     }
     spec.regions.assign(gs.regions().begin(), gs.regions().end());
@@ -249,18 +253,28 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     spec.coupling = p.coupling();
     spec.friction = p.friction();
     switch (p.contact()) {
-      case v1::NODES: spec.contact = ContactModel::kNodes; break;
-      case v1::SURFACE: spec.contact = ContactModel::kSurface; break;
-      default: return Error{where + "unknown contact model"};
+      case v1::NODES:
+        spec.contact = ContactModel::kNodes;
+        break;
+      case v1::SURFACE:
+        spec.contact = ContactModel::kSurface;
+        break;
+      default:
+        return Error{where + "unknown contact model"};
     }
     if (spec.contact == ContactModel::kNodes && p.shape() != v1::SPHERE)
       return Error{where + "shape PUNCH needs contact: SURFACE"};
     if (spec.contact == ContactModel::kNodes && p.friction() > 0)
       return Error{where + "friction needs contact: SURFACE"};
     switch (p.shape()) {
-      case v1::SPHERE: spec.shape = ToolShape::kSphere; break;
-      case v1::PUNCH: spec.shape = ToolShape::kPunch; break;
-      default: return Error{where + "unknown shape"};
+      case v1::SPHERE:
+        spec.shape = ToolShape::kSphere;
+        break;
+      case v1::PUNCH:
+        spec.shape = ToolShape::kPunch;
+        break;
+      default:
+        return Error{where + "unknown shape"};
     }
     if (p.has_axis()) {
       spec.axis = vec(p.axis());
@@ -284,9 +298,15 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   const auto& s = scene.solver();
   SolverOptions& o = b.options;
   switch (s.integrator()) {
-    case v1::EXPLICIT_EULER: o.integrator = Integrator::kExplicitEuler; break;
-    case v1::IMPLICIT_EULER: o.integrator = Integrator::kImplicitEuler; break;
-    default: o.integrator = Integrator::kSymplecticEuler; break;
+    case v1::EXPLICIT_EULER:
+      o.integrator = Integrator::kExplicitEuler;
+      break;
+    case v1::IMPLICIT_EULER:
+      o.integrator = Integrator::kImplicitEuler;
+      break;
+    default:
+      o.integrator = Integrator::kSymplecticEuler;
+      break;
   }
   const std::string swhere = loc.at("solver") + "solver: ";
   const double rate = s.has_rate_hz() ? s.rate_hz() : 1000.0;
@@ -308,11 +328,13 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     const auto& a = s.active_region();
     const std::string awhere = loc.at("solver") + "solver.active_region: ";
     if (o.integrator == Integrator::kImplicitEuler)
-      return Error{awhere + "needs SYMPLECTIC_EULER or EXPLICIT_EULER (the implicit step couples "
-                            "every node)"};
+      return Error{awhere +
+                   "needs SYMPLECTIC_EULER or EXPLICIT_EULER (the implicit step couples "
+                   "every node)"};
     if (b.bulk_modulus > 0 || b.shear_modulus > 0)
-      return Error{awhere + "not with bulk_modulus or shear_modulus (the region's lists hold "
-                            "springs only)"};
+      return Error{awhere +
+                   "not with bulk_modulus or shear_modulus (the region's lists hold "
+                   "springs only)"};
     if (!(a.tolerance() > 0) || !std::isfinite(a.tolerance()))
       return Error{awhere + "tolerance must be a positive length in m (got " + num(a.tolerance()) +
                    ")"};
@@ -332,7 +354,8 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
       if (e.find("\"" + b.groups[g].name + "\"") != std::string::npos)
         return Error{loc.at("group", g) + e};
     for (int k = 0; k < scene.fixed_size(); ++k)
-      if (e.rfind("fixed selector " + std::to_string(k), 0) == 0) return Error{loc.at("fixed", k) + e};
+      if (e.rfind("fixed selector " + std::to_string(k), 0) == 0)
+        return Error{loc.at("fixed", k) + e};
     return Error{name + ": " + e};
   }
   return out;

@@ -17,9 +17,9 @@ namespace conica::io {
 struct SceneFile {
   std::string name;
   std::string description;
-  std::string path;          // as given
-  std::string mesh_path;     // resolved mesh file, empty for lattices
-  BodySpec spec;             // geometry in metres, cards, selectors, solver options
+  std::string path;       // as given
+  std::string mesh_path;  // resolved mesh file, empty for lattices
+  BodySpec spec;          // geometry in metres, cards, selectors, solver options
 };
 
 // Reads, parses and validates a scene; the mesh path is resolved against the scene's folder.

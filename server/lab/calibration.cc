@@ -3,7 +3,6 @@
 #include <ceres/ceres.h>
 
 #include <Eigen/Dense>
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -66,14 +65,18 @@ struct Layout {
   std::vector<double> smin;  // (cards) stroke lower bound per card
   bool iso = false;          // K > 1: moduli tied by the isotropy condition
   bool pre = false;          // pre-compressions fitted
-  double stroke_min(int c) const { return c < static_cast<int>(smin.size()) ? smin[c] : b.stroke_min; }
+  double stroke_min(int c) const {
+    return c < static_cast<int>(smin.size()) ? smin[c] : b.stroke_min;
+  }
   double pre_max(int c, double stroke) const {
     return std::max(0.0, std::min(b.precompression_max, 1 - stroke_min(c) / stroke));
   }
   int moduli() const { return iso && cards > 1 ? cards - 1 : cards; }
   int size() const { return moduli() + cards + (tie ? 1 : cards) + (pre ? cards : 0); }
 };
-double to01(double v, double lo, double hi) { return std::clamp((v - lo) / (hi - lo), 1e-6, 1 - 1e-6); }
+double to01(double v, double lo, double hi) {
+  return std::clamp((v - lo) / (hi - lo), 1e-6, 1 - 1e-6);
+}
 // k_t(delta0) / K0 of a shape: the factor from the card modulus E_c to the modulus at rest
 // (1 without pre-compression; shape-only, so any base card gives it).
 double rest_factor(const CardShape& sh) {
@@ -90,8 +93,8 @@ std::vector<CardShape> decode(const double* x, const Layout& L) {
   const int M = L.moduli();
   for (int c = 0; c < L.cards; ++c) {
     out[c].stroke = L.stroke_min(c) + (L.b.stroke_max - L.stroke_min(c)) * sigmoid(x[M + c]);
-    out[c].taper = L.b.taper_min +
-                   (L.b.taper_max - L.b.taper_min) * sigmoid(x[M + L.cards + (L.tie ? 0 : c)]);
+    out[c].taper =
+        L.b.taper_min + (L.b.taper_max - L.b.taper_min) * sigmoid(x[M + L.cards + (L.tie ? 0 : c)]);
     if (L.pre)
       out[c].precompression =
           L.pre_max(c, out[c].stroke) * sigmoid(x[M + L.cards + (L.tie ? 1 : L.cards) + c]);
@@ -197,8 +200,8 @@ class Progress : public ceres::IterationCallback {
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
     if (o_.progress)
       o_.progress(stage_ + " iteration " + std::to_string(s.iteration) + ": rms relative error " +
-                  fmt(100 * std::sqrt(2 * s.cost / n_), 4) + " %, " +
-                  shapes_text(decode(x_, L_)) + (s.step_is_successful ? "" : " (step rejected)"));
+                  fmt(100 * std::sqrt(2 * s.cost / n_), 4) + " %, " + shapes_text(decode(x_, L_)) +
+                  (s.step_is_successful ? "" : " (step rejected)"));
     return ceres::SOLVER_CONTINUE;
   }
 
@@ -311,8 +314,8 @@ ColumnFloor column_floor(const std::vector<double>& strain, const std::vector<do
         CardShape sh{1.0, B.taper_min + (B.taper_max - B.taper_min) * i / (nt - 1),
                      smin + (B.stroke_max - smin) * j / (ns - 1)};
         if (np > 1)
-          sh.precompression = std::max(0.0, std::min(B.precompression_max, 1 - smin / sh.stroke)) *
-                              q / (np - 1);
+          sh.precompression =
+              std::max(0.0, std::min(B.precompression_max, 1 - smin / sh.stroke)) * q / (np - 1);
         if (q > 0 && sh.precompression == 0) continue;
         const ConicalCard card = card_with_shape(base, sh);
         if (!validate(card).empty()) continue;
@@ -484,12 +487,18 @@ std::vector<int> card_families(int cards) {
 
 std::string families_name(int f) {
   switch (f) {
-    case kEdge: return "edges";
-    case kFaceDiagonal: return "face-diagonals";
-    case kBodyDiagonal: return "body-diagonals";
-    case kFaceDiagonal | kBodyDiagonal: return "diagonals";
-    case kAllFamilies: return "all";
-    default: return "families-" + std::to_string(f);
+    case kEdge:
+      return "edges";
+    case kFaceDiagonal:
+      return "face-diagonals";
+    case kBodyDiagonal:
+      return "body-diagonals";
+    case kFaceDiagonal | kBodyDiagonal:
+      return "diagonals";
+    case kAllFamilies:
+      return "all";
+    default:
+      return "families-" + std::to_string(f);
   }
 }
 
@@ -560,7 +569,8 @@ std::vector<SpringGroupSpec> split_groups(const BodySpec& spec,
   return out;
 }
 
-std::vector<double> surrogate_force(const BodySpec& spec, const std::vector<SpringGroupSpec>& groups,
+std::vector<double> surrogate_force(const BodySpec& spec,
+                                    const std::vector<SpringGroupSpec>& groups,
                                     const std::vector<double>& grid) {
   Model m;
   if (!build_model(spec, &m).empty() || m.planes.empty())
@@ -577,8 +587,7 @@ std::vector<double> surrogate_force(const BodySpec& spec, const ConicalCard& car
   return surrogate_force(spec, groups, grid);
 }
 
-FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
-                    const FitOptions& o) {
+FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves, const FitOptions& o) {
   FitResult r;
   auto say = [&](const std::string& s) {
     if (o.progress) o.progress(s);
@@ -643,14 +652,15 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     for (const ColumnFloor* f : {&r.floor, &r.floor_precompressed}) {
       say(std::string("column floor") + (f == &r.floor ? "" : ", pre-compressed laws too") +
           ": the best sum of conical laws in parallel along the load (none past its stroke) has "
-          "average relative error " + fmt(100 * f->error, 4) + " % (" +
-          std::to_string(f->shapes.size()) + " laws: " + shapes_text(f->shapes) + ")");
+          "average relative error " +
+          fmt(100 * f->error, 4) + " % (" + std::to_string(f->shapes.size()) +
+          " laws: " + shapes_text(f->shapes) + ")");
     }
   }
   say("data: " + std::to_string(curves.size()) + " curve(s) averaged on " + std::to_string(n) +
       " points up to " + fmt(r.grid.back() * 1e3) + " mm (strain " + fmt(o.max_strain) +
-      "), error over points from " + fmt(r.grid[r.first] * 1e3) + " mm (strain >= " +
-      fmt(o.skip_strain) + ")");
+      "), error over points from " + fmt(r.grid[r.first] * 1e3) +
+      " mm (strain >= " + fmt(o.skip_strain) + ")");
 
   auto groups_for = [&](const std::vector<ConicalCard>& cards) {
     return split_groups(spec, cards);
@@ -663,9 +673,9 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     return spec.shear_modulus > 0 ? shear_ratio * lattice_shear(lattice_moduli(groups)) : 0.0;
   };
   const bool with_volume = o.poisson >= 0 || spec.bulk_modulus > 0;
-  const double scene_nu = o.poisson >= 0 ? o.poisson
-                                         : body_poisson(scene_moduli, spec.bulk_modulus,
-                                                        spec.shear_modulus);
+  const double scene_nu = o.poisson >= 0
+                              ? o.poisson
+                              : body_poisson(scene_moduli, spec.bulk_modulus, spec.shear_modulus);
   if (with_volume && !(scene_nu < 0.5)) {
     r.error = "Poisson ratio must be < 0.5 (got " + fmt(scene_nu) + ")";
     return r;
@@ -685,8 +695,10 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     return ElementModuli{bulk, spread_ratio * bulk, shear_for(groups)};
   };
   if (with_volume)
-    say("volume stiffness: Poisson ratio " + fmt(nu, 4) + " kept while fitting (bulk modulus at "
-        "the scene's card " + fmt(bulk_for(spec.groups, nu), 5) + " Pa)");
+    say("volume stiffness: Poisson ratio " + fmt(nu, 4) +
+        " kept while fitting (bulk modulus at "
+        "the scene's card " +
+        fmt(bulk_for(spec.groups, nu), 5) + " Pa)");
   auto surrogate = [&](const std::vector<ConicalCard>& cards) {
     ++r.evaluations;
     const std::vector<SpringGroupSpec> groups = groups_for(cards);
@@ -786,10 +798,10 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
       solve_lm(res, R, o.max_iterations, true, 1e-6, o, "surrogate LM (one card, plain law)",
                x0.data());
       const CardShape plain = decode(x0.data(), L0p)[0];
-      found.push_back({{plain}, average_relative_error(surrogate(cards_of(base, {plain})), r.data,
-                                                       r.first)});
-      found[0].surrogate_error = average_relative_error(surrogate(cards_of(base, {one})), r.data,
-                                                        r.first);
+      found.push_back(
+          {{plain}, average_relative_error(surrogate(cards_of(base, {plain})), r.data, r.first)});
+      found[0].surrogate_error =
+          average_relative_error(surrogate(cards_of(base, {one})), r.data, r.first);
       res.layout = L1;
     }
   } else {
@@ -804,7 +816,8 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     // Diagonal cards: modulus relative to the edges' (36/17: isotropic) and stroke on a grid;
     // the edges keep the one-card shape.
     std::vector<double> ratios = {0.5, 1.0, 36.0 / 17, 5.0};
-    if (o.isotropic) ratios = K == 2 ? std::vector<double>{36.0 / 17} : std::vector<double>{0.1, 0.4, 0.7};
+    if (o.isotropic)
+      ratios = K == 2 ? std::vector<double>{36.0 / 17} : std::vector<double>{0.1, 0.4, 0.7};
     for (double ratio : ratios)
       for (double stroke : {0.25, 0.4, 0.6, 0.8})
         for (double taper : {one.taper, 0.3}) {
@@ -832,17 +845,19 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
     const int tries = std::min<int>(4, static_cast<int>(starts.size()));
     for (int t = 0; t < tries; ++t) {
       std::vector<double> x = encode(starts[t].shapes, L);
-      solve_lm(res, R, o.max_iterations, true, 1e-6, o,
-               "surrogate LM (" + std::to_string(K) + " cards, start " + std::to_string(t + 1) + ")",
-               x.data());
+      solve_lm(
+          res, R, o.max_iterations, true, 1e-6, o,
+          "surrogate LM (" + std::to_string(K) + " cards, start " + std::to_string(t + 1) + ")",
+          x.data());
       const std::vector<CardShape> sh = decode(x.data(), L);
       found.push_back({sh, average_relative_error(surrogate(cards_of(base, sh)), r.data, r.first)});
     }
     // The one-card body as a candidate too (the cards may not help in the full body).
-    if (!o.isotropic) found.push_back(
-        {std::vector<CardShape>(K, one),
-         average_relative_error(surrogate(cards_of(base, std::vector<CardShape>(K, one))), r.data,
-                                r.first)});
+    if (!o.isotropic)
+      found.push_back(
+          {std::vector<CardShape>(K, one),
+           average_relative_error(surrogate(cards_of(base, std::vector<CardShape>(K, one))), r.data,
+                                  r.first)});
     std::stable_sort(found.begin(), found.end(), [](const Candidate& a, const Candidate& b) {
       return a.surrogate_error < b.surrogate_error;
     });
@@ -865,8 +880,8 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   };
   set_result(found.front().shapes);
   r.surrogate_error_before_refine = r.surrogate_error;
-  say("surrogate fit: average relative error " + fmt(100 * r.surrogate_error, 4) + " %: " +
-      shapes_text(r.shapes));
+  say("surrogate fit: average relative error " + fmt(100 * r.surrogate_error, 4) +
+      " %: " + shapes_text(r.shapes));
   if (o.full_iterations < 0) return r;
 
   // 3. The full body: verify (K > 1: the best few distinct optima), then refine through it.
@@ -907,15 +922,15 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
   double best_full = std::numeric_limits<double>::infinity();
   std::vector<CardShape> best_shapes = found.front().shapes;
   std::vector<double> best_curve;
-  const int verify = K == 1 ? static_cast<int>(found.size())
-                            : std::min<int>(std::max(1, o.verify_candidates),
-                                            static_cast<int>(found.size()));
+  const int verify =
+      K == 1 ? static_cast<int>(found.size())
+             : std::min<int>(std::max(1, o.verify_candidates), static_cast<int>(found.size()));
   for (int c = 0; c < verify; ++c) {
     const std::vector<double> f = full(cards_of(base, found[c].shapes));
     const double e = average_relative_error(f, r.data, r.first);
     say("full body at surrogate optimum " + std::to_string(c + 1) + " (surrogate " +
-        fmt(100 * found[c].surrogate_error, 4) + " %): average relative error " +
-        fmt(100 * e, 4) + " %");
+        fmt(100 * found[c].surrogate_error, 4) + " %): average relative error " + fmt(100 * e, 4) +
+        " %");
     if (e < best_full) {
       best_full = e;
       best_shapes = found[c].shapes;
@@ -948,8 +963,8 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
       sh.precompression = ip * L1.pre_max(0, sh.stroke) / gp;
       std::vector<CardShape> one_shape{sh};
       if (!std::isfinite(scaled_error(&one_shape))) continue;  // modulus from the surrogate
-      const double ratio = gn == 1 ? scene_nu
-                                   : scene_nu - (scene_nu - o.poisson_min) * in / (gn - 1);
+      const double ratio =
+          gn == 1 ? scene_nu : scene_nu - (scene_nu - o.poisson_min) * in / (gn - 1);
       points.push_back({one_shape[0], ratio, {}});
     }
     parallel_for(static_cast<int>(points.size()), o.threads, [&](int k) {
@@ -968,9 +983,8 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
       p.shape.modulus *= scale;
       say("full-body grid: " + (gn > 1 ? "Poisson " + fmt(p.nu, 3) + ", " : std::string()) +
           "taper " + fmt(p.shape.taper, 3) + ", stroke " + fmt(p.shape.stroke, 3) +
-          (p.shape.precompression > 0
-               ? ", pre-compression " + fmt(p.shape.precompression, 3) + " S"
-               : std::string()) +
+          (p.shape.precompression > 0 ? ", pre-compression " + fmt(p.shape.precompression, 3) + " S"
+                                      : std::string()) +
           ": average relative error " + fmt(100 * e, 4) + " % (modulus scaled)" +
           (kept ? std::string()
                 : ", rejected: left the homogeneous state (layer spread " +
@@ -1084,8 +1098,8 @@ std::string card_fragment(const std::string& group_name, const SpringCard& card)
      << "    stiffness_cap: " << fmt(card.stiffness_cap, 9) << "\n";
   if (card.damping > 0) os << "    damping: " << fmt(card.damping, 9) << "\n";
   if (card.maxwell_k > 0)
-    os << "    maxwell_k: " << fmt(card.maxwell_k, 9) << "\n    maxwell_tau: "
-       << fmt(card.maxwell_tau, 9) << "\n";
+    os << "    maxwell_k: " << fmt(card.maxwell_k, 9)
+       << "\n    maxwell_tau: " << fmt(card.maxwell_tau, 9) << "\n";
   os << "  }\n}\n";
   return os.str();
 }
@@ -1106,8 +1120,8 @@ std::string group_fragment(const SpringGroupSpec& g) {
   }
   for (const std::string& reg : g.regions) f += "  regions: \"" + reg + "\"\n";
   if (g.axis.norm() > 0)
-    f += "  axis { x: " + fmt(g.axis.x(), 9) + " y: " + fmt(g.axis.y(), 9) + " z: " +
-         fmt(g.axis.z(), 9) + " }\n  max_angle_deg: " + fmt(g.max_angle_deg, 9) + "\n";
+    f += "  axis { x: " + fmt(g.axis.x(), 9) + " y: " + fmt(g.axis.y(), 9) +
+         " z: " + fmt(g.axis.z(), 9) + " }\n  max_angle_deg: " + fmt(g.max_angle_deg, 9) + "\n";
   return f + "}\n";
 }
 

@@ -61,14 +61,14 @@ bool parse_force_curve(std::string_view text, Curve* out, std::string* error);
 
 // The identifiable parameters of a conical card (see above), and its pre-compression.
 struct CardShape {
-  double modulus = 0;  // E_c = K0 / L0, Pa
-  double taper = 0;    // rho = D1 / D2, in (0, 1)
-  double stroke = 0;   // s = S / L0, in (0, 1]
+  double modulus = 0;         // E_c = K0 / L0, Pa
+  double taper = 0;           // rho = D1 / D2, in (0, 1)
+  double stroke = 0;          // s = S / L0, in (0, 1]
   double precompression = 0;  // p = delta0 / S, in [0, 1): the card's precompression is p S
 };
 CardShape shape_of(const ConicalCard& card);
-// `base` with D1, d, G and precompression set from `shape`; D2, L0, n_a kept. The result may be invalid for
-// shapes out of range (check with validate()).
+// `base` with D1, d, G and precompression set from `shape`; D2, L0, n_a kept. The result may be
+// invalid for shapes out of range (check with validate()).
 ConicalCard card_with_shape(const ConicalCard& base, const CardShape& shape);
 
 // Bounds of the search (a shape outside them is never tried).
@@ -133,74 +133,74 @@ ColumnFloor column_floor(const std::vector<double>& strain, const std::vector<do
                          bool precompressed = false);
 
 struct FitOptions {
-  int cards = 1;             // conical cards, one per family part (see above), 1..3
-  bool tie_taper = false;    // the cards share one taper
-  bool isotropic = true;     // K > 1: the family moduli satisfy the isotropy condition
-                             // 4 E_edge = E_face + 8/9 E_body (K - 1 moduli free instead of K)
-  int verify_candidates = 3; // K > 1: full-body check of this many distinct surrogate optima
-                             // (K = 1 with fit_precompression: the pre-compressed and the plain
-                             // optimum are both checked),
-                             // the best full-body one is kept (full_iterations >= 0)
-  double max_strain = 0.5;   // fit up to this engineering strain of the body
-  int points = 50;           // displacement grid: points equal steps up to max_strain
-  double skip_strain = 0.03; // the error and residuals leave out grid points below this strain
-                             // (the seating toe of a test, where the load is near zero)
-  int max_iterations = 100;  // Levenberg-Marquardt on the surrogate
-  int full_iterations = 3;   // Levenberg-Marquardt through the full body (0: verify only;
-                             // < 0: no full-body run at all)
-  int full_grid = 4;         // one card: before the full-body refinement, a grid of full_grid
-                             // tapers x full_grid strokes (plain law) is compressed in the full
-                             // body, each modulus scaled in closed form, and the best shape kept
-                             // as the start when it beats the surrogate optima (0: none). The
-                             // surrogate's optimum can sit where the law is linear over the range
-                             // (taper and stroke then have no gradient) while the full body,
-                             // softer than the cell at large strain, needs the stiffening.
-  int full_grid_pre = 3;     // pre-compressions of that grid: 0 and, with fit_precompression,
-                             // full_grid_pre - 1 more up to its bound, evenly (1: plain law only)
-  int space_mapping = 0;     // output space mapping steps after the full-body check: the
-                             // surrogate times the measured full-body / surrogate force ratio
-                             // (per grid point) is refitted, and the full body rerun at the new
-                             // optimum; one full compression per step (0: none). On the
-                             // phantom cylinder it does not converge: the full body's late
-                             // collapse makes the ratio depend strongly on the cards.
-  bool column_floor = true;  // compute the column floor (see above) of the data, without and
-                             // with pre-compressed laws
+  int cards = 1;              // conical cards, one per family part (see above), 1..3
+  bool tie_taper = false;     // the cards share one taper
+  bool isotropic = true;      // K > 1: the family moduli satisfy the isotropy condition
+                              // 4 E_edge = E_face + 8/9 E_body (K - 1 moduli free instead of K)
+  int verify_candidates = 3;  // K > 1: full-body check of this many distinct surrogate optima
+                              // (K = 1 with fit_precompression: the pre-compressed and the plain
+                              // optimum are both checked),
+                              // the best full-body one is kept (full_iterations >= 0)
+  double max_strain = 0.5;    // fit up to this engineering strain of the body
+  int points = 50;            // displacement grid: points equal steps up to max_strain
+  double skip_strain = 0.03;  // the error and residuals leave out grid points below this strain
+                              // (the seating toe of a test, where the load is near zero)
+  int max_iterations = 100;   // Levenberg-Marquardt on the surrogate
+  int full_iterations = 3;    // Levenberg-Marquardt through the full body (0: verify only;
+                              // < 0: no full-body run at all)
+  int full_grid = 4;          // one card: before the full-body refinement, a grid of full_grid
+                              // tapers x full_grid strokes (plain law) is compressed in the full
+                              // body, each modulus scaled in closed form, and the best shape kept
+                              // as the start when it beats the surrogate optima (0: none). The
+                              // surrogate's optimum can sit where the law is linear over the range
+                              // (taper and stroke then have no gradient) while the full body,
+                              // softer than the cell at large strain, needs the stiffening.
+  int full_grid_pre = 3;      // pre-compressions of that grid: 0 and, with fit_precompression,
+                              // full_grid_pre - 1 more up to its bound, evenly (1: plain law only)
+  int space_mapping = 0;      // output space mapping steps after the full-body check: the
+                              // surrogate times the measured full-body / surrogate force ratio
+                              // (per grid point) is refitted, and the full body rerun at the new
+                              // optimum; one full compression per step (0: none). On the
+                              // phantom cylinder it does not converge: the full body's late
+                              // collapse makes the ratio depend strongly on the cards.
+  bool column_floor = true;   // compute the column floor (see above) of the data, without and
+                              // with pre-compressed laws
   bool fit_precompression = true;  // fit each card's pre-compression p = delta0 / S too (a
                                    // fourth number per card); false: p = 0, the plain law
-  int full_grid_poisson = 3; // Poisson ratios of that grid, evenly from poisson_min to the
-                             // scene's own (1: the scene's only). Only with volume stiffness and
-                             // no `poisson` given: a force curve fixes the body's Poisson ratio
-                             // only through the geometric stiffening it brings (an
-                             // incompressible body stiffens in compression by itself), which
-                             // trades off with the coils' stiffening, so it is searched with the
-                             // shape and the best is kept (the fitted body's ratio is reported).
-  double poisson_min = 0.41; // lowest Poisson ratio of that grid
+  int full_grid_poisson = 3;       // Poisson ratios of that grid, evenly from poisson_min to the
+                              // scene's own (1: the scene's only). Only with volume stiffness and
+                              // no `poisson` given: a force curve fixes the body's Poisson ratio
+                              // only through the geometric stiffening it brings (an
+                              // incompressible body stiffens in compression by itself), which
+                              // trades off with the coils' stiffening, so it is searched with the
+                              // shape and the best is kept (the fitted body's ratio is reported).
+  double poisson_min = 0.41;       // lowest Poisson ratio of that grid
   double max_layer_spread = 0.02;  // a full-body run whose node layers spread by more than
                                    // this fraction of the half width at the end of the travel
                                    // (lab/compression.h layer_spread: it leaned, buckled or its
                                    // layers alternate) has left the homogeneous state, and its
                                    // curve is not used (the fit would owe its shape to it)
-  int threads = 0;           // full-body grid runs in parallel (0: one per hardware thread)
-  double rate = 500e-3 / 60; // m/s, plate speed of the full-body compression
-  double poisson = -1;       // the body's small-strain Poisson ratio kept while the cards change,
-                             // by the volume stiffness (bulk_for_poisson); < 0: the scene's own
-                             // (its cards, bulk_modulus and shear_modulus) and, through the full
-                             // body, the best of full_grid_poisson ratios up to it; with no
-                             // bulk_modulus in the scene none is added. A scene's shear_modulus
-                             // keeps its ratio to the lattice's shear modulus.
+  int threads = 0;                 // full-body grid runs in parallel (0: one per hardware thread)
+  double rate = 500e-3 / 60;       // m/s, plate speed of the full-body compression
+  double poisson = -1;  // the body's small-strain Poisson ratio kept while the cards change,
+                        // by the volume stiffness (bulk_for_poisson); < 0: the scene's own
+                        // (its cards, bulk_modulus and shear_modulus) and, through the full
+                        // body, the best of full_grid_poisson ratios up to it; with no
+                        // bulk_modulus in the scene none is added. A scene's shear_modulus
+                        // keeps its ratio to the lattice's shear modulus.
   ShapeBounds bounds;
   std::function<void(const std::string&)> progress;  // one line per stage / iteration
 };
 
 struct FitResult {
   CardShape shape;
-  ConicalCard card;               // the fitted card of the first part (K = 1: the only one)
-  std::vector<CardShape> shapes;  // (K) per card
-  std::vector<ConicalCard> cards; // (K)
+  ConicalCard card;                     // the fitted card of the first part (K = 1: the only one)
+  std::vector<CardShape> shapes;        // (K) per card
+  std::vector<ConicalCard> cards;       // (K)
   std::vector<SpringGroupSpec> groups;  // the fitted groups: the scene's conical group split by
                                         // family, each with its fitted card, in scene order
-  LatticeModuli moduli;           // of the fitted groups
-  double bulk_modulus = 0;        // Pa, volume stiffness of the fitted body
+  LatticeModuli moduli;                 // of the fitted groups
+  double bulk_modulus = 0;              // Pa, volume stiffness of the fitted body
   double spread_modulus = 0;      // Pa, its Gauss-point spread stiffness (the scene's ratio to
                                   // bulk_modulus kept)
   double shear_modulus = 0;       // Pa, its shear stiffness (the scene's ratio to the lattice's
@@ -216,11 +216,11 @@ struct FitResult {
   double surrogate_error_before_refine = -1;  // surrogate error at the surrogate optimum
   double full_error_before_refine = -1;       // full-body error at the surrogate optimum
   double full_error_after_mapping = -1;       // full-body error after space mapping (-1: none)
-  ColumnFloor floor;              // of the data (options.column_floor), plain conical laws
+  ColumnFloor floor;                // of the data (options.column_floor), plain conical laws
   ColumnFloor floor_precompressed;  // the same with pre-compressed laws in the basis
-  int evaluations = 0;            // surrogate curves computed
-  int full_evaluations = 0;       // full-body compressions run
-  std::string error;              // why the fit could not run (empty: it ran)
+  int evaluations = 0;              // surrogate curves computed
+  int full_evaluations = 0;         // full-body compressions run
+  std::string error;                // why the fit could not run (empty: it ran)
 };
 
 // The paper's metric: mean over i >= first of |model_i - data_i| / data_i.
@@ -238,13 +238,15 @@ std::vector<double> surrogate_force(const BodySpec& spec, const ConicalCard& car
                                     const std::vector<double>& grid);
 
 // Force predicted by the cell surrogate with `groups` in place of the spec's groups.
-std::vector<double> surrogate_force(const BodySpec& spec, const std::vector<SpringGroupSpec>& groups,
+std::vector<double> surrogate_force(const BodySpec& spec,
+                                    const std::vector<SpringGroupSpec>& groups,
                                     const std::vector<double>& grid);
 
 // The spec's groups with its first conical group split into the parts of card_families(cards),
 // each with the card `cards[i]` (same regions, axis, cap, damping). Empty on error (a part that
 // selects no family).
-std::vector<SpringGroupSpec> split_groups(const BodySpec& spec, const std::vector<ConicalCard>& cards,
+std::vector<SpringGroupSpec> split_groups(const BodySpec& spec,
+                                          const std::vector<ConicalCard>& cards,
                                           std::string* error = nullptr);
 
 // Fits the conical card(s) of `spec` (its first conical group, split into options.cards family

@@ -45,16 +45,16 @@ double plate_height(const Model& model);
 double cross_section(const Model& model);
 
 struct CompressionStats {
-  long steps = 0;                 // steps taken
-  double dt = 0;                  // s, per step
-  double plate_stiffness = 0;     // N/m per node, as used
-  double max_penetration = 0;     // m, deepest node behind the moving plate at a sample
-  std::uint64_t rollbacks = 0;    // guard trips (should be 0)
+  long steps = 0;               // steps taken
+  double dt = 0;                // s, per step
+  double plate_stiffness = 0;   // N/m per node, as used
+  double max_penetration = 0;   // m, deepest node behind the moving plate at a sample
+  std::uint64_t rollbacks = 0;  // guard trips (should be 0)
   std::uint64_t hard_stops = 0;
-  double step_seconds = 0;        // s, mean wall time of step() alone
-  std::vector<Vec3> positions;    // m, node positions at the end of the travel
-  double layer_spread = 0;        // m, layer_spread() at the end of the travel
-  double half_width = 0;          // m, the rest body's largest distance from its axis
+  double step_seconds = 0;      // s, mean wall time of step() alone
+  std::vector<Vec3> positions;  // m, node positions at the end of the travel
+  double layer_spread = 0;      // m, layer_spread() at the end of the travel
+  double half_width = 0;        // m, the rest body's largest distance from its axis
 };
 
 // How far a compressed prism has left the homogeneous state: nodes grouped into layers by rest

@@ -3,7 +3,6 @@
 #include <time.h>
 
 #include <Eigen/Eigenvalues>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -30,7 +29,8 @@ double median(std::vector<double> v) {
   const size_t k = v.size() / 2;
   std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
   double m = v[k];
-  if (v.size() % 2 == 0) m = 0.5 * (m + *std::max_element(v.begin(), v.begin() + static_cast<long>(k)));
+  if (v.size() % 2 == 0)
+    m = 0.5 * (m + *std::max_element(v.begin(), v.begin() + static_cast<long>(k)));
   return m;
 }
 
@@ -49,8 +49,8 @@ Trace run(const Model& m, long ticks, Drive drive, Read read) {
     drive(s, k);
     const auto t0 = std::chrono::steady_clock::now();
     step(m, s, ws);
-    tick_us.push_back(
-        1e6 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    tick_us.push_back(1e6 *
+                      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     tr.force.push_back(read(s, ws));
     tr.finite &= tr.force.back().allFinite();
   }
@@ -88,8 +88,8 @@ Trace run_compression(const Model& m, double strain, double ramp_s, long ticks) 
   return run(m, ticks, drive, read);
 }
 
-Trace run_indentation(const Model& m, const Vec3& at, const Vec3& axis, double depth,
-                      double ramp_s, long ticks) {
+Trace run_indentation(const Model& m, const Vec3& at, const Vec3& axis, double depth, double ramp_s,
+                      long ticks) {
   const double dt = m.options.dt;
   auto drive = [&](State& s, long k) {
     const double t = dt * static_cast<double>(k + 1);
@@ -241,7 +241,7 @@ bool parse_tradeoff_csv(const std::string& text, std::vector<TradeoffRow>* rows,
   std::map<std::string, size_t> col;
   for (size_t i = 0; i < header.size(); ++i) col[header[i]] = i;
   const char* required[] = {"scene", "resolution", "nodes", "springs", "integrator", "newton",
-                            "cg", "substeps", "law", "step_us", "error", "stable"};
+                            "cg",    "substeps",   "law",   "step_us", "error",      "stable"};
   for (const char* name : required)
     if (!col.count(name)) {
       *error = std::string("line 1: no column '") + name + "' in the header";
@@ -262,8 +262,8 @@ bool parse_tradeoff_csv(const std::string& text, std::vector<TradeoffRow>* rows,
       char* end = nullptr;
       *v = std::strtod(s.c_str(), &end);
       if (s.empty() || end != s.c_str() + s.size()) {
-        *error = "line " + std::to_string(lineno) + ": column '" + name + "': not a number: '" +
-                 s + "'";
+        *error =
+            "line " + std::to_string(lineno) + ": column '" + name + "': not a number: '" + s + "'";
         return false;
       }
       return true;

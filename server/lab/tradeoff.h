@@ -76,17 +76,17 @@ double register_principal_axes(std::vector<Vec3>* nodes, const std::vector<Vec3>
 
 // One setting of the sweep and what it measured: one CSV row.
 struct TradeoffRow {
-  std::string scene;        // experiment: "compression" or "indentation"
-  std::string resolution;   // "20mm", "liver2", ...
+  std::string scene;       // experiment: "compression" or "indentation"
+  std::string resolution;  // "20mm", "liver2", ...
   int nodes = 0, springs = 0;
-  std::string integrator;   // "symplectic", "explicit", "implicit"
-  int newton = 0, cg = 0;   // implicit budgets per step (0 for explicit integrators)
-  int substeps = 1;         // steps per 1 ms tick
-  std::string law;          // "conical" or "hooke"
-  double step_us = 0;       // us, median wall time per tick
-  double error = 0;         // relative, see above (NaN when a force went non-finite)
-  bool stable = true;       // no rollback, finite, peak force at most 2x the reference's
-  double cpu_us = 0;        // us, mean thread CPU time per tick
+  std::string integrator;  // "symplectic", "explicit", "implicit"
+  int newton = 0, cg = 0;  // implicit budgets per step (0 for explicit integrators)
+  int substeps = 1;        // steps per 1 ms tick
+  std::string law;         // "conical" or "hooke"
+  double step_us = 0;      // us, median wall time per tick
+  double error = 0;        // relative, see above (NaN when a force went non-finite)
+  bool stable = true;      // no rollback, finite, peak force at most 2x the reference's
+  double cpu_us = 0;       // us, mean thread CPU time per tick
   std::uint64_t rollbacks = 0;
   double rms_error = std::numeric_limits<double>::quiet_NaN();  // force_rms_error (NaN: not
                                                                 // in the data)
@@ -112,16 +112,16 @@ std::vector<int> pareto_front(const std::vector<TradeoffRow>& rows);
 // data's time for the same setting at the finest resolution, or the spring-count ratio when the
 // data has no such setting); its error is the measured error at its resolution.
 struct PlanRequest {
-  std::string scene;          // "compression" or "indentation"
-  std::string law;            // "conical" or "hooke"
-  double tolerance = 0.05;    // relative force error
-  double budget_us = 1000;    // us per tick
-  double cost_scale = 1;      // target tick time / data tick time
+  std::string scene;        // "compression" or "indentation"
+  std::string law;          // "conical" or "hooke"
+  double tolerance = 0.05;  // relative force error
+  double budget_us = 1000;  // us per tick
+  double cost_scale = 1;    // target tick time / data tick time
 };
 
 struct PlanCandidate {
-  int row = -1;               // index into the rows
-  double cost_us = 0;         // predicted for the target scene
+  int row = -1;        // index into the rows
+  double cost_us = 0;  // predicted for the target scene
   double error = 0;
 };
 
@@ -132,7 +132,7 @@ struct Plan {
   // When nothing meets both: the cheapest meeting the tolerance (over budget) and the most
   // accurate within the budget (over tolerance), when they exist.
   std::vector<PlanCandidate> closest;
-  int candidates = 0;                     // rows considered
+  int candidates = 0;  // rows considered
 };
 
 // Precondition: tolerance > 0, budget_us > 0, cost_scale > 0.

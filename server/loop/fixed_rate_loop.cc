@@ -211,8 +211,8 @@ void FixedRateLoop::apply(const Route& route, const ControlRequest& request) {
       case Parameter::kGravityX:
       case Parameter::kGravityY:
       case Parameter::kGravityZ:
-        m.options.gravity[static_cast<int>(set->parameter) - static_cast<int>(Parameter::kGravityX)] =
-            v;
+        m.options
+            .gravity[static_cast<int>(set->parameter) - static_cast<int>(Parameter::kGravityX)] = v;
         break;
       case Parameter::kPositionsHz:
         if ((ok = v >= 0)) set_positions_rate(v);

@@ -101,14 +101,14 @@ class FixedRateLoop {
   Observer no_observer_;
   std::unique_ptr<Scene> scene_, retired_;
   ScenePreparer preparer_;
-  Route load_route_;             // who asked for the scene being prepared
+  Route load_route_;  // who asked for the scene being prepared
   std::uint64_t load_sequence_ = 0;
 
   Clock* clock_ = nullptr;
   Transport* transport_ = nullptr;
   const std::atomic<bool>* stop_ = nullptr;
-  Incoming in_;                  // reused: no allocation per message
-  ControlResult control_;        // reused
+  Incoming in_;            // reused: no allocation per message
+  ControlResult control_;  // reused
   TimeNs period_ns_ = 1'000'000, next_ = 0;
   std::uint64_t positions_every_ = 0;  // ticks between positions frames (0: never)
   bool paused_ = false;

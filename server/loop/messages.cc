@@ -48,8 +48,8 @@ bool check_probe(const ProbeUpdate& p, const ProbeLimits& lim, Rejection* why) {
     return fail(why, ErrorKind::kBadValue, "probe position outside the box around the body", seq);
   const double r = p.radius;
   if (!std::isfinite(r) || r < 0 || r > lim.max_radius)
-    return fail(why, ErrorKind::kBadValue,
-                "probe radius must be in (0, 1] m (0 keeps the scene's)", seq);
+    return fail(why, ErrorKind::kBadValue, "probe radius must be in (0, 1] m (0 keeps the scene's)",
+                seq);
   return true;
 }
 

@@ -62,20 +62,20 @@ bool check_probe(const ProbeUpdate& update, const ProbeLimits& limits, Rejection
 // ---- control commands, applied between ticks ----------------------------------------------
 enum class Parameter : std::uint8_t {
   kUnknown,
-  kDamping,      // model mass damping, 1/s, >= 0
-  kGravityX,     // m/s^2
+  kDamping,   // model mass damping, 1/s, >= 0
+  kGravityX,  // m/s^2
   kGravityY,
   kGravityZ,
   kPositionsHz,  // rate of state frames with node positions, Hz, >= 0 (0: never)
 };
-const char* parameter_name(Parameter p);       // "damping", "gravity_x", ... ("?" for kUnknown)
+const char* parameter_name(Parameter p);  // "damping", "gravity_x", ... ("?" for kUnknown)
 Parameter parameter_from_name(std::string_view name);  // kUnknown when not one of those
 
-struct LoadScene {  // prepared off the loop thread, swapped in at a tick boundary
+struct LoadScene {     // prepared off the loop thread, swapped in at a tick boundary
   std::string source;  // what the scene loader reads (a path)
 };
-struct Reset {};   // back to the rest state
-struct Pause {};   // stop stepping (probes are still answered)
+struct Reset {};  // back to the rest state
+struct Pause {};  // stop stepping (probes are still answered)
 struct Resume {};
 struct SetParameter {
   Parameter parameter = Parameter::kUnknown;
@@ -98,9 +98,9 @@ enum class Channel : std::uint8_t { kProbe, kControl };
 struct Route {
   static constexpr std::size_t kMaxBytes = 256;
   Channel channel = Channel::kProbe;
-  bool routable = true;      // false: the message cannot be answered (no usable envelope)
-  std::uint8_t flags = 0;    // transport-specific
-  std::uint16_t size = 0;    // bytes used
+  bool routable = true;    // false: the message cannot be answered (no usable envelope)
+  std::uint8_t flags = 0;  // transport-specific
+  std::uint16_t size = 0;  // bytes used
   std::array<std::uint8_t, kMaxBytes> bytes{};
 };
 
@@ -131,8 +131,8 @@ struct LoopStats {
 // node positions.
 struct ForceReply {
   ProbeUpdate update;
-  ProbeState probe;           // force (N), stiffness (N/m), contacts, centre (m)
-  std::uint64_t tick = 0;     // simulation tick the force belongs to
+  ProbeState probe;                  // force (N), stiffness (N/m), contacts, centre (m)
+  std::uint64_t tick = 0;            // simulation tick the force belongs to
   TimeNs recv_ns = 0, reply_ns = 0;  // the loop's clock
 };
 

@@ -53,11 +53,11 @@ std::string prepare_scene(const BodySpec& spec, const PrepareOptions& opt, Scene
       if (m->options.integrator == Integrator::kImplicitEuler)
         note(true, "active region ignored: the implicit integrator steps every node");
       else if (ws.far_every > 0)
-        note(false, format("active region: tolerance %g m; far field one step every %d ticks "
-                           "(measured stability bound %d, far inertia x %.3f); the step below is "
-                           "measured at rest",
-                           m->options.active_tolerance, ws.far_every, ws.measured_every,
-                           ws.far_raise));
+        note(false,
+             format("active region: tolerance %g m; far field one step every %d ticks "
+                    "(measured stability bound %d, far inertia x %.3f); the step below is "
+                    "measured at rest",
+                    m->options.active_tolerance, ws.far_every, ws.measured_every, ws.far_raise));
       else
         note(false, format("active region: tolerance %g m; far field frozen",
                            m->options.active_tolerance));
@@ -65,9 +65,10 @@ std::string prepare_scene(const BodySpec& spec, const PrepareOptions& opt, Scene
   }
   const double median = scene->step_us, period_us = 1e6 * period_s;
   if (median > period_us && opt.refuse_slow_scene)
-    return format("the step costs %.0f us (median of %d), more than the %.0f us period at %g Hz: "
-                  "lower the rate or simplify the scene",
-                  median, n, period_us, opt.rate_hz);
+    return format(
+        "the step costs %.0f us (median of %d), more than the %.0f us period at %g Hz: "
+        "lower the rate or simplify the scene",
+        median, n, period_us, opt.rate_hz);
   if (median > 0.5 * period_us)
     note(true, format("the step costs %.0f us of the %.0f us period: ticks may be missed", median,
                       period_us));
@@ -88,20 +89,20 @@ void ScenePreparer::start(std::string source, SceneLoader loader, PrepareOptions
   done_.store(false, std::memory_order_relaxed);
   result_ = Result{};
   result_.source = std::move(source);
-  worker_ = std::thread([this, loader = std::move(loader), options,
-                         retired = std::move(retired)]() mutable {
-    retired.reset();
-    BodySpec spec;
-    std::string e = loader ? loader(result_.source, &spec) : "no scene loader";
-    if (e.empty()) {
-      auto scene = std::make_unique<Scene>();
-      e = prepare_scene(spec, options, scene.get());
-      result_.notes = std::move(scene->notes);
-      if (e.empty()) result_.scene = std::move(scene);
-    }
-    result_.error = std::move(e);
-    done_.store(true, std::memory_order_release);
-  });
+  worker_ = std::thread(
+      [this, loader = std::move(loader), options, retired = std::move(retired)]() mutable {
+        retired.reset();
+        BodySpec spec;
+        std::string e = loader ? loader(result_.source, &spec) : "no scene loader";
+        if (e.empty()) {
+          auto scene = std::make_unique<Scene>();
+          e = prepare_scene(spec, options, scene.get());
+          result_.notes = std::move(scene->notes);
+          if (e.empty()) result_.scene = std::move(scene);
+        }
+        result_.error = std::move(e);
+        done_.store(true, std::memory_order_release);
+      });
 }
 
 ScenePreparer::Result ScenePreparer::take() {

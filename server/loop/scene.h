@@ -29,16 +29,16 @@ struct Scene {
   std::unique_ptr<Model> model;  // stable address; the loop changes options between ticks only
   State state;                   // the live state (at rest when prepared)
   std::unique_ptr<Workspace> workspace;
-  ProbeLimits limits;            // the body's box grown by the margin
-  double step_us = 0;            // median step cost at rest, us
+  ProbeLimits limits;  // the body's box grown by the margin
+  double step_us = 0;  // median step cost at rest, us
   std::vector<Note> notes;
 };
 
 struct PrepareOptions {
-  double rate_hz = 1000;           // the loop's rate: the step should cost less than a period
-  bool refuse_slow_scene = true;   // refuse a scene whose median step cost exceeds the period
-  double box_margin = 0.25;        // m: probe positions must lie within the body box grown by this
-  int benchmark_steps = 50;        // steps timed on a copy of the rest state
+  double rate_hz = 1000;          // the loop's rate: the step should cost less than a period
+  bool refuse_slow_scene = true;  // refuse a scene whose median step cost exceeds the period
+  double box_margin = 0.25;       // m: probe positions must lie within the body box grown by this
+  int benchmark_steps = 50;       // steps timed on a copy of the rest state
 };
 
 // Builds the model from `spec`, times `benchmark_steps` steps of a copy on the steady clock and
@@ -50,10 +50,10 @@ void reset_scene(Scene* scene);
 
 // What a LoadScene came to: swapped in (ok) or refused, with preparation's notes either way.
 struct SceneReport {
-  std::string source;                       // LoadScene.source
+  std::string source;  // LoadScene.source
   bool ok = false;
-  std::string error;                        // when refused
-  const Scene* scene = nullptr;             // the scene in use afterwards (valid during the call)
+  std::string error;             // when refused
+  const Scene* scene = nullptr;  // the scene in use afterwards (valid during the call)
   const std::vector<Note>* notes = nullptr;
 };
 

@@ -22,11 +22,11 @@ namespace conica::net {
 inline constexpr std::uint32_t kProtocolVersion = 1;
 
 // The loop's plain types under their wire-side names.
-using ErrorKind = loop::ErrorKind;       // numbered as Error.Code on the wire
-using loop::kNumErrorCodes;              // Error.Code values 0..7
+using ErrorKind = loop::ErrorKind;  // numbered as Error.Code on the wire
+using loop::kNumErrorCodes;         // Error.Code values 0..7
 using DecodeError = loop::Rejection;
 using ProbeLimits = loop::ProbeLimits;
-using ProbeInput = loop::ProbeUpdate;    // a probe update (validated by decode_probe)
+using ProbeInput = loop::ProbeUpdate;  // a probe update (validated by decode_probe)
 using LoopStatsData = loop::LoopStats;
 using loop::body_box;
 

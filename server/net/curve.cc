@@ -47,7 +47,8 @@ bool valid_z85_key(const std::string& key) { return !decode_key(key).empty(); }
 std::string generate_keypair(CurveKeyPair* out) {
   if (!curve_available()) return "this libzmq has no CURVE support (built without libsodium)";
   char pub[41] = {}, sec[41] = {};
-  if (zmq_curve_keypair(pub, sec) != 0) return std::string("zmq_curve_keypair: ") + zmq_strerror(zmq_errno());
+  if (zmq_curve_keypair(pub, sec) != 0)
+    return std::string("zmq_curve_keypair: ") + zmq_strerror(zmq_errno());
   out->public_key = pub;
   out->secret_key = sec;
   return {};
@@ -67,8 +68,8 @@ std::string write_keypair(const std::string& dir, const std::string& name, const
     std::ofstream f(key);
     umask(old);
     if (!f) return "cannot write " + key.string();
-    f << "# conica CURVE key pair: keep this file private\npublic " << kp.public_key
-      << "\nsecret " << kp.secret_key << "\n";
+    f << "# conica CURVE key pair: keep this file private\npublic " << kp.public_key << "\nsecret "
+      << kp.secret_key << "\n";
     if (!f) return "cannot write " + key.string();
   }
   fs::permissions(key, fs::perms::owner_read | fs::perms::owner_write, ec);
@@ -117,7 +118,8 @@ std::string read_client_keys(const std::string& dir, std::vector<std::string>* k
   for (const auto& p : files) {
     CurveKeyPair kp;
     if (std::string e = read_key_file(p.string(), &kp); !e.empty()) return e;
-    if (!kp.secret_key.empty()) return p.string() + ": holds a secret key; give the server .pub files only";
+    if (!kp.secret_key.empty())
+      return p.string() + ": holds a secret key; give the server .pub files only";
     keys->push_back(kp.public_key);
   }
   return {};
@@ -195,7 +197,9 @@ void ZapHandler::handle(zmq::socket_t& rep) {
     (void)rep.recv(extra, zmq::recv_flags::none);
     if (!extra.more()) break;
   }
-  const auto str = [&](std::size_t k) { return k < parts.size() ? parts[k].to_string() : std::string(); };
+  const auto str = [&](std::size_t k) {
+    return k < parts.size() ? parts[k].to_string() : std::string();
+  };
   const std::string version = str(0), id = str(1), domain = str(2), address = str(3),
                     mechanism = str(5), credential = str(6);
   bool ok = version == "1.0" && mechanism == "CURVE" && credential.size() == 32 &&
@@ -211,9 +215,9 @@ void ZapHandler::handle(zmq::socket_t& rep) {
       spdlog::warn("CURVE: refused {} client {} from {}{}", mechanism.empty() ? "?" : mechanism,
                    credential.size() == 32 ? encode_key(credential) : std::string("(no key)"),
                    address,
-                   refused_unlogged_ ? fmt::format("; {} more refused since the last report",
-                                                   refused_unlogged_)
-                                     : std::string());
+                   refused_unlogged_
+                       ? fmt::format("; {} more refused since the last report", refused_unlogged_)
+                       : std::string());
       last_log_ns_ = t;
       refused_unlogged_ = 0;
     } else {

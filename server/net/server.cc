@@ -20,7 +20,8 @@
 namespace conica::net {
 namespace {
 
-constexpr loop::TimeNs kFinalSleepNs = 20000;  // the last stretch before a deadline: clock_nanosleep
+constexpr loop::TimeNs kFinalSleepNs =
+    20000;  // the last stretch before a deadline: clock_nanosleep
 constexpr loop::TimeNs kErrorLogPeriodNs = 10ull * 1000000000ull;
 
 loop::LoopOptions loop_options(const ServerOptions& o) {
@@ -48,8 +49,10 @@ void log_notes(const std::vector<loop::Note>& notes) {
 void try_realtime(const ServerOptions& opt) {
   prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
   if (opt.busy_poll)
-    spdlog::warn("busy poll: the loop thread spins on its sockets (resting {:.0f} % of a period "
-                 "after each probe) and uses a whole core", 100 * (1 - opt.busy_poll_fraction));
+    spdlog::warn(
+        "busy poll: the loop thread spins on its sockets (resting {:.0f} % of a period "
+        "after each probe) and uses a whole core",
+        100 * (1 - opt.busy_poll_fraction));
   if (!opt.realtime) return;
   sched_param sp{};
   sp.sched_priority = std::min(80, sched_get_priority_max(SCHED_FIFO));
@@ -88,8 +91,8 @@ class Server::Events final : public loop::Observer {
         "{:.0f}/{:.0f} us; input p99 {:.0f} us; publish p99 {:.0f} us; probes {}, errors {}, "
         "rollbacks {}",
         s.ticks, s.missed_ticks, s.lateness_p50_us, s.lateness_p99_us, s.lateness_max_us,
-        s.step_p50_us, s.step_p99_us, s.input_p99_us, s.publish_p99_us, s.probes_received,
-        s.errors, c.rollbacks);
+        s.step_p50_us, s.step_p99_us, s.input_p99_us, s.publish_p99_us, s.probes_received, s.errors,
+        c.rollbacks);
   }
 
   // Once per kind per 10 s, with the number suppressed since.
@@ -102,8 +105,8 @@ class Server::Events final : public loop::Observer {
       return;
     }
     spdlog::warn("{} socket: {} message ({}){}",
-                 channel == loop::Channel::kProbe ? "probe" : "control",
-                 error_kind_name(err.kind), err.message,
+                 channel == loop::Channel::kProbe ? "probe" : "control", error_kind_name(err.kind),
+                 err.message,
                  error_suppressed_[code]
                      ? fmt::format("; {} more since the last report", error_suppressed_[code])
                      : "");
@@ -118,8 +121,8 @@ class Server::Events final : public loop::Observer {
       return;
     }
     const Model& m = *r.scene->model;
-    spdlog::info("loaded scene {}: {} nodes, {} springs, step {:.1f} us", r.source,
-                 m.num_nodes(), m.num_springs(), r.scene->step_us);
+    spdlog::info("loaded scene {}: {} nodes, {} springs, step {:.1f} us", r.source, m.num_nodes(),
+                 m.num_springs(), r.scene->step_us);
   }
 
  private:
@@ -141,9 +144,7 @@ Server::~Server() { stop(); }
 
 const Model& Server::model() const { return *loop_->scene()->model; }
 
-double Server::measured_step_us() const {
-  return loop_->scene() ? loop_->scene()->step_us : 0.0;
-}
+double Server::measured_step_us() const { return loop_->scene() ? loop_->scene()->step_us : 0.0; }
 
 Endpoints Server::endpoints() const {
   std::lock_guard lock(mutex_);

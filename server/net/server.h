@@ -52,8 +52,8 @@ struct ServerOptions {
   double log_period_s = 10;           // loop statistics at info level (0: never)
   int max_message_bytes = 64 * 1024;  // larger client messages: TOO_LARGE (transport drops them)
   int pub_sndhwm = 16;                // messages queued per subscriber before PUB drops
-  double box_margin = 0.25;       // m: probe positions must lie within the body box grown by this
-  bool realtime = false;          // try SCHED_FIFO and mlockall (logged at info when refused)
+  double box_margin = 0.25;  // m: probe positions must lie within the body box grown by this
+  bool realtime = false;     // try SCHED_FIFO and mlockall (logged at info when refused)
   // Between ticks, spin on the sockets (ZMQ_EVENTS, receive with ZMQ_DONTWAIT) instead of
   // sleeping in ppoll on their file descriptors: no wake-up on a probe's arrival, at the price of
   // a whole core (only sensible with a core to spare; logged at start).

@@ -231,7 +231,8 @@ bool ZmqTransport::send(const loop::Route& to, const v1::ServerMessage& msg) {
     constexpr auto more = zmq::send_flags::sndmore | zmq::send_flags::dontwait;
     bool ok = s.send(zmq::const_buffer(to.bytes.data(), to.size), more).has_value();
     if (ok && (to.flags & kDelimiter)) ok = s.send(zmq::const_buffer(nullptr, 0), more).has_value();
-    if (ok) ok = s.send(zmq::const_buffer(out_.data(), size), zmq::send_flags::dontwait).has_value();
+    if (ok)
+      ok = s.send(zmq::const_buffer(out_.data(), size), zmq::send_flags::dontwait).has_value();
     return ok;
   } catch (const zmq::error_t&) {
     return false;  // EHOSTUNREACH and kin: the client is gone
@@ -261,7 +262,8 @@ void ZmqTransport::publish(const loop::StateFrame& f) {
   const char topic = f.with_positions ? 'S' : 'F';
   try {
     // PUB never blocks: at the high-water mark a subscriber's frames are dropped.
-    if (pub_.send(zmq::const_buffer(&topic, 1), zmq::send_flags::sndmore | zmq::send_flags::dontwait))
+    if (pub_.send(zmq::const_buffer(&topic, 1),
+                  zmq::send_flags::sndmore | zmq::send_flags::dontwait))
       (void)pub_.send(zmq::const_buffer(out_.data(), size), zmq::send_flags::dontwait);
   } catch (const zmq::error_t&) {
   }

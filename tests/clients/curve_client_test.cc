@@ -2,15 +2,13 @@
 // conica-server --generate-keys are read with errors naming the file and the problem; a client
 // whose key the server lists gets physically sensible force replies from an in-process CURVE
 // server, a client with an unknown key gets nothing within a bounded wait.
-#include "client/connection.h"
-
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 
-#include <gtest/gtest.h>
-
+#include "client/connection.h"
 #include "net/builtin_scenes.h"
 #include "net/curve.h"
 #include "net/server.h"
@@ -61,7 +59,8 @@ class CurveClientTest : public ::testing::Test {
   }
 
   // Sends one update and waits up to timeout_s for the reply with its sequence.
-  bool Probe(ProbeConnection& c, std::uint64_t seq, const Vec3& x, double timeout_s, ForceSample* f) {
+  bool Probe(ProbeConnection& c, std::uint64_t seq, const Vec3& x, double timeout_s,
+             ForceSample* f) {
     EXPECT_TRUE(c.send(0, seq, static_cast<std::uint64_t>(now_ns()), x));
     const std::int64_t deadline = now_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
     std::string error;
@@ -84,16 +83,19 @@ TEST_F(CurveClientTest, KeyFileErrorsNameTheFileAndTheProblem) {
   CurveClient c;
   EXPECT_EQ(load_curve_client("", "", &c), "");
   EXPECT_FALSE(c.enabled());
-  EXPECT_NE(load_curve_client(File("server.pub"), "", &c).find("needs --curve-key"), std::string::npos);
+  EXPECT_NE(load_curve_client(File("server.pub"), "", &c).find("needs --curve-key"),
+            std::string::npos);
   EXPECT_NE(load_curve_client("", File("clients/alice.key"), &c).find("needs --curve-server-pub"),
             std::string::npos);
-  EXPECT_EQ(load_curve_client(File("missing.pub"), File("clients/alice.key"), &c),
-            File("missing.pub") + ": cannot open key file (--curve-server-pub: the server's .pub file)");
+  EXPECT_EQ(
+      load_curve_client(File("missing.pub"), File("clients/alice.key"), &c),
+      File("missing.pub") + ": cannot open key file (--curve-server-pub: the server's .pub file)");
   EXPECT_EQ(load_curve_client(File("server.pub"), File("missing.key"), &c),
             File("missing.key") + ": cannot open key file (--curve-key: this client's .key file)");
   // The server's secret key file given to a client.
   EXPECT_EQ(load_curve_client(File("server.key"), File("clients/alice.key"), &c),
-            File("server.key") + ": holds the server's secret key; give the client the server's .pub file");
+            File("server.key") +
+                ": holds the server's secret key; give the client the server's .pub file");
   // The client's .pub instead of its .key.
   EXPECT_EQ(load_curve_client(File("server.pub"), File("clients/alice.pub"), &c),
             File("clients/alice.pub") +
@@ -102,10 +104,12 @@ TEST_F(CurveClientTest, KeyFileErrorsNameTheFileAndTheProblem) {
   std::ofstream(File("damaged.key")) << "# mine\npublic 0123456789\n";
   EXPECT_EQ(load_curve_client(File("server.pub"), File("damaged.key"), &c),
             File("damaged.key") +
-                ":2: expected 'public <z85 key>' or 'secret <z85 key>' (--curve-key: this client's .key file)");
+                ":2: expected 'public <z85 key>' or 'secret <z85 key>' (--curve-key: this client's "
+                ".key file)");
   std::ofstream(File("empty.pub")) << "# nothing here\n";
-  EXPECT_EQ(load_curve_client(File("empty.pub"), File("clients/alice.key"), &c),
-            File("empty.pub") + ": no key in the file (--curve-server-pub: the server's .pub file)");
+  EXPECT_EQ(
+      load_curve_client(File("empty.pub"), File("clients/alice.key"), &c),
+      File("empty.pub") + ": no key in the file (--curve-server-pub: the server's .pub file)");
   EXPECT_FALSE(c.enabled());
   ASSERT_EQ(load_curve_client(File("server.pub"), File("clients/alice.key"), &c), "");
   EXPECT_TRUE(c.enabled());
@@ -143,8 +147,8 @@ TEST_F(CurveClientTest, AuthorisedClientGetsForcesUnknownClientGetsNothing) {
   }
   v1::ControlReply reply;
   std::string error;
-  EXPECT_TRUE(control_request(ctx_, ep.control, v1::ControlRequest::GET_STATS, 5000, &reply, &error,
-                              alice))
+  EXPECT_TRUE(
+      control_request(ctx_, ep.control, v1::ControlRequest::GET_STATS, 5000, &reply, &error, alice))
       << error;
   EXPECT_EQ(reply.num_nodes(), 320u);
 

@@ -1,8 +1,9 @@
 // Device frames and units at the edge, and the virtual device's mechanics.
 #include "haptics/device.h"
 
-#include <Eigen/LU>
 #include <gtest/gtest.h>
+
+#include <Eigen/LU>
 
 namespace conica::haptics {
 namespace {

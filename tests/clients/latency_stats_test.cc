@@ -56,8 +56,8 @@ TEST(LatencyRecorder, MatchesBySequenceFromTheScheduledTime) {
   ASSERT_EQ(l.size(), 4u);
   EXPECT_DOUBLE_EQ(l[0], 100);
   EXPECT_DOUBLE_EQ(l[3], 50);
-  EXPECT_FALSE(r.on_sent(2, 5));   // a sequence is sent once
-  EXPECT_FALSE(r.on_sent(5, 5));   // out of range
+  EXPECT_FALSE(r.on_sent(2, 5));  // a sequence is sent once
+  EXPECT_FALSE(r.on_sent(5, 5));  // out of range
 }
 
 TEST(LatencyStats, SummaryLineFormat) {

@@ -2,11 +2,11 @@
 // coupling, continuity through lost replies, and passivity on the virtual device.
 #include "haptics/renderer.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "haptics/device.h"
 #include "haptics/servo.h"
@@ -59,11 +59,11 @@ TEST(Renderer, NeverExceedsTheProfileForceOnRandomInput) {
         if (i % 3 == 0) {
           Mat3 k;
           for (int j = 0; j < 9; ++j) k(j / 3, j % 3) = u(rng) * std::pow(10.0, logk(rng));
-          r.on_reply(reply(t, 0.05 * Vec3(u(rng), u(rng), u(rng)),
-                           1e4 * Vec3(u(rng), u(rng), u(rng)), k));
+          r.on_reply(
+              reply(t, 0.05 * Vec3(u(rng), u(rng), u(rng)), 1e4 * Vec3(u(rng), u(rng), u(rng)), k));
         }
-        const Vec3 f = r.update(t, 0.1 * Vec3(u(rng), u(rng), u(rng)),
-                                10 * Vec3(u(rng), u(rng), u(rng)));
+        const Vec3 f =
+            r.update(t, 0.1 * Vec3(u(rng), u(rng), u(rng)), 10 * Vec3(u(rng), u(rng), u(rng)));
         ASSERT_TRUE(f.allFinite());
         worst = std::max(worst, f.norm());
         worst_step = std::max(worst_step, (f - prev).norm());
@@ -207,8 +207,8 @@ TEST(Renderer, ForceIsContinuousWhenRepliesStopAndResume) {
   Vec3 at_stop = Vec3::Zero(), at_resume = Vec3::Constant(1);
   for (int i = 0; i < 1000; ++i) {
     const double t = i * kDt;
-    if (i < 300) r.on_reply(reply(t, x, Vec3(0, 0, 3.0), k));       // 3 N
-    if (i >= 600) r.on_reply(reply(t, x, Vec3(-3.3, 0, 0), k));      // resumes, other force
+    if (i < 300) r.on_reply(reply(t, x, Vec3(0, 0, 3.0), k));    // 3 N
+    if (i >= 600) r.on_reply(reply(t, x, Vec3(-3.3, 0, 0), k));  // resumes, other force
     if (i == 300) at_stop = prev;
     const Vec3 f = r.update(t, x, Vec3::Zero());
     if (i == 330) {  // lost replies inside the timeout: the last model is still rendered
@@ -219,10 +219,10 @@ TEST(Renderer, ForceIsContinuousWhenRepliesStopAndResume) {
     prev = f;
   }
   EXPECT_NEAR(at_stop.z(), 3.0, 1e-9);
-  EXPECT_LT(at_resume.norm(), 1e-9);   // faded to zero after the timeout
-  EXPECT_NEAR(prev.x(), -3.3, 1e-9);   // and reached the new force
+  EXPECT_LT(at_resume.norm(), 1e-9);  // faded to zero after the timeout
+  EXPECT_NEAR(prev.x(), -3.3, 1e-9);  // and reached the new force
   EXPECT_LE(worst, limit);
-  EXPECT_GT(worst, 0.99 * limit);      // the limiter was what shaped the transitions
+  EXPECT_GT(worst, 0.99 * limit);  // the limiter was what shaped the transitions
   EXPECT_GT(r.stats().stale_ticks, 200u);
 }
 
@@ -250,8 +250,8 @@ TEST(Renderer, ServoLoopStaysWithinSlewThroughLostReplies) {
 }
 
 struct PassivityRun {
-  double device_work;    // J, from the virtual device's own bookkeeping
-  double peak_force;     // N
+  double device_work;  // J, from the virtual device's own bookkeeping
+  double peak_force;   // N
 };
 
 // A hand pushes a Falcon tip 10 mm into a 3000 N/m wall and back, every second, for 20 s;
@@ -268,9 +268,11 @@ PassivityRun run_wall(const RendererOptions& o, double wall_k) {
   Renderer r(prof, o);
   WallLink wall(Vec3::Zero(), Vec3(0, 0, 1), wall_k, 3, kDt);
   double peak = 0;
-  for (int i = 0; i < 20000; ++i) peak = std::max(peak, servo_tick(i * kDt, dev, r, wall).force.norm());
+  for (int i = 0; i < 20000; ++i)
+    peak = std::max(peak, servo_tick(i * kDt, dev, r, wall).force.norm());
   // Both accounts of the same work agree (renderer: held force times device displacement).
-  EXPECT_NEAR(r.stats().device_work, dev.work_received(), 1e-3 + 0.05 * std::abs(dev.work_received()));
+  EXPECT_NEAR(r.stats().device_work, dev.work_received(),
+              1e-3 + 0.05 * std::abs(dev.work_received()));
   return {dev.work_received(), peak};
 }
 

@@ -1,9 +1,9 @@
 // CSV trajectories (errors with file:line:column) and the built-in probe scripts.
 #include "common/trajectory.h"
 
-#include <sstream>
-
 #include <gtest/gtest.h>
+
+#include <sstream>
 
 namespace conica::client {
 namespace {
@@ -17,7 +17,8 @@ std::string parse_error(const std::string& text) {
 }
 
 TEST(Trajectory, ParsesHeaderCommentsAndRows) {
-  std::istringstream in("# a press\nt,probe,x,y,z\n0,0,0.02,0.02,0.05\n\n0.001, 1 ,0.02,0.02,4.9e-2\r\n");
+  std::istringstream in(
+      "# a press\nt,probe,x,y,z\n0,0,0.02,0.02,0.05\n\n0.001, 1 ,0.02,0.02,4.9e-2\r\n");
   std::vector<TrajectoryRow> rows;
   std::string error;
   ASSERT_TRUE(parse_trajectory(in, "m.csv", &rows, &error)) << error;
@@ -31,19 +32,23 @@ TEST(Trajectory, ParsesHeaderCommentsAndRows) {
 TEST(Trajectory, ErrorsNameFileLineAndColumn) {
   EXPECT_EQ(parse_error("t,probe,x,y,z\n0,0,1,2,3\n0.1,0,1,2\n"),
             "moves.csv:3:10: expected 5 fields (t,probe,x,y,z), got 4");
-  EXPECT_EQ(parse_error("0,0,0.1,abc,0\n"), "moves.csv:1:9: field y: \"abc\" is not a finite number");
+  EXPECT_EQ(parse_error("0,0,0.1,abc,0\n"),
+            "moves.csv:1:9: field y: \"abc\" is not a finite number");
   EXPECT_EQ(parse_error("0,0,0.1,0,0\n0,0.5,0,0,0\n"),
             "moves.csv:2:3: probe must be an integer in 0..1000000, got 0.5");
   EXPECT_EQ(parse_error("0,0,0,0,nan\n"), "moves.csv:1:9: field z: \"nan\" is not a finite number");
   EXPECT_EQ(parse_error("# c\n\n0.2,0,0,0,0\n0.1,1,0,0,0\n0.1,0,0,0,0\n"),
             "moves.csv:5:1: time goes backwards for probe 0 (0.1 s after 0.2 s)");
   EXPECT_EQ(parse_error("-1,0,0,0,0\n"), "moves.csv:1:1: time must be >= 0 s, got -1");
-  EXPECT_EQ(parse_error("0,0,20,0,300\n"),
-            "moves.csv:1:10: position more than 100 m from the origin (the file must be in metres)");
+  EXPECT_EQ(
+      parse_error("0,0,20,0,300\n"),
+      "moves.csv:1:10: position more than 100 m from the origin (the file must be in metres)");
   EXPECT_EQ(parse_error("t,probe,x,y,z\n"), "moves.csv: no samples (expected lines t,probe,x,y,z)");
-  EXPECT_EQ(parse_error("0,0,1,2,3,\n"), "moves.csv:1:11: expected 5 fields (t,probe,x,y,z), got 6");
+  EXPECT_EQ(parse_error("0,0,1,2,3,\n"),
+            "moves.csv:1:11: expected 5 fields (t,probe,x,y,z), got 6");
   // Columns count from the start of the raw line, blanks included.
-  EXPECT_EQ(parse_error("  0, 0 ,  0.1,  x1 ,0\n"), "moves.csv:1:17: field y: \"x1\" is not a finite number");
+  EXPECT_EQ(parse_error("  0, 0 ,  0.1,  x1 ,0\n"),
+            "moves.csv:1:17: field y: \"x1\" is not a finite number");
 }
 
 TEST(Trajectory, RepeatedTimesAndLargeProbeIndicesAreAccepted) {
@@ -120,11 +125,11 @@ TEST(Scripts, RampSineSweep) {
   std::string error;
   auto ramp = run(*make_script("ramp", p, &error));
   EXPECT_NEAR(ramp[400].position.z(), p.at.z() - 0.004, 1e-12);  // deepest at 0.4 s
-  EXPECT_NEAR(ramp.back().position.z(), p.at.z(), 1e-12);         // back out at 0.8 s
+  EXPECT_NEAR(ramp.back().position.z(), p.at.z(), 1e-12);        // back out at 0.8 s
   p.freq = 2;
   p.cycles = 1;
   auto sine = run(*make_script("sine", p, &error));
-  EXPECT_NEAR(sine[250].position.z(), p.at.z() - 0.004, 1e-12);   // half a period at 2 Hz
+  EXPECT_NEAR(sine[250].position.z(), p.at.z() - 0.004, 1e-12);  // half a period at 2 Hz
   p.length = 0.01;
   p.sweep_dir = Vec3(1, 0, 1);  // made perpendicular to the axis
   auto sweep = run(*make_script("sweep", p, &error));
@@ -151,7 +156,7 @@ TEST(Scripts, CreepHoldsTheTargetForce) {
   int n = 0;
   while (s->next(last, &x)) {
     const double d = (x.position - p.at).dot(p.axis);  // depth along the axis
-    fb.force = Vec3(0, 0, 400 * std::max(0.0, d));            // pushes back up (+z)
+    fb.force = Vec3(0, 0, 400 * std::max(0.0, d));     // pushes back up (+z)
     fb.contact = d > 0;
     last = &fb;
     ++n;

@@ -18,7 +18,8 @@ namespace {
 // the switch to whole-body steps is off unless asked for: these tests are about the region.
 Model Bar(bool active, double tolerance, int far_every = -1, bool whole_body_switch = false) {
   BodySpec b = TissueBar({16, 4, 2}, active, tolerance, far_every);
-  if (!whole_body_switch) b.options.active_whole_body_cost = std::numeric_limits<double>::infinity();
+  if (!whole_body_switch)
+    b.options.active_whole_body_cost = std::numeric_limits<double>::infinity();
   Model m;
   EXPECT_EQ(build_model(b, &m), "");
   return m;
@@ -127,8 +128,8 @@ TEST(ActiveRegionTest, ForcesAgreeWithTheFullSimulation) {
   for (double tol : {2e-5, 2e-4}) {
     const Comparison c = Compare(Bar(false, tol), Bar(true, tol), 600);
     ASSERT_GT(c.peak_force, 0);
-    std::printf("tolerance %g m: awake fraction %.3f, force error %.3g %%\n", tol,
-                c.awake_fraction, 100 * c.error);
+    std::printf("tolerance %g m: awake fraction %.3f, force error %.3g %%\n", tol, c.awake_fraction,
+                100 * c.error);
     // The smaller tolerance wakes more and agrees to 1 %; the larger stays small and within 10 %.
     if (tol < 1e-4) {
       EXPECT_LT(c.error, 0.01) << "awake fraction " << c.awake_fraction;
@@ -149,11 +150,12 @@ TEST(ActiveRegionTest, MultiRateFarFieldAgreesToOnePercentWithASmallRegion) {
   const Workspace ws(multi);
   ASSERT_GT(ws.far_every, 1) << "the far field's stability bound allows no interval";
   const Comparison moving = Compare(full, multi, 600);
-  std::printf("frozen: error %.3g %%, awake %.3f; multi-rate (every %d ticks): error %.3g %%, "
-              "awake %.3f; far end moved %.3g / %.3g / %.3g um (full / frozen / multi-rate)\n",
-              100 * frozen.error, frozen.awake_fraction, ws.far_every, 100 * moving.error,
-              moving.awake_fraction, 1e6 * moving.far_full, 1e6 * frozen.far_active,
-              1e6 * moving.far_active);
+  std::printf(
+      "frozen: error %.3g %%, awake %.3f; multi-rate (every %d ticks): error %.3g %%, "
+      "awake %.3f; far end moved %.3g / %.3g / %.3g um (full / frozen / multi-rate)\n",
+      100 * frozen.error, frozen.awake_fraction, ws.far_every, 100 * moving.error,
+      moving.awake_fraction, 1e6 * moving.far_full, 1e6 * frozen.far_active,
+      1e6 * moving.far_active);
   EXPECT_LT(moving.awake_fraction, 0.5);
   EXPECT_LT(moving.error, 0.01);
   EXPECT_GT(frozen.error, 2 * moving.error);
@@ -326,8 +328,8 @@ TEST(ActiveRegionTest, SpectralBoundIsTheLargestEigenvalueOfTheStiffnessOverTheM
   const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
   const double lambda = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(S).eigenvalues().maxCoeff();
   const double bound = far_spectral_bound(m);
-  std::printf("largest eigenvalue of M^-1 K: dense %.6g 1/s^2, Lanczos bound %.6g (%d dof)\n", lambda,
-              bound, n);
+  std::printf("largest eigenvalue of M^-1 K: dense %.6g 1/s^2, Lanczos bound %.6g (%d dof)\n",
+              lambda, bound, n);
   EXPECT_GE(bound, lambda * (1 - 1e-6));  // an upper bound (Ritz value plus residual)
   EXPECT_LE(bound, lambda * 1.05);        // and a tight one
 }

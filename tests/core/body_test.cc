@@ -41,11 +41,13 @@ TEST(BodyTest, PaperCubeHas320NodesAndLatticeSpringCounts) {
   EXPECT_EQ(m.num_nodes(), 320);
   const int nx = 8, ny = 8, nz = 5;
   const int edges = (nx - 1) * ny * nz + nx * (ny - 1) * nz + nx * ny * (nz - 1);
-  const int faces = 2 * ((nx - 1) * (ny - 1) * nz + (nx - 1) * ny * (nz - 1) + nx * (ny - 1) * (nz - 1));
+  const int faces =
+      2 * ((nx - 1) * (ny - 1) * nz + (nx - 1) * ny * (nz - 1) + nx * (ny - 1) * (nz - 1));
   const int bodies = 4 * (nx - 1) * (ny - 1) * (nz - 1);
   EXPECT_EQ(m.num_springs(), edges + faces + bodies);
   // Each family alone.
-  for (auto [fam, count] : {std::pair{kEdge, edges}, {kFaceDiagonal, faces}, {kBodyDiagonal, bodies}}) {
+  for (auto [fam, count] :
+       {std::pair{kEdge, edges}, {kFaceDiagonal, faces}, {kBodyDiagonal, bodies}}) {
     BodySpec s = BoxSpec({7, 7, 4});
     s.groups[0].families = fam;
     ASSERT_EQ(build_model(s, &m), "");
@@ -66,7 +68,8 @@ TEST(BodyTest, LumpedMassesSumToDensityTimesVolume) {
 }
 
 TEST(BodyTest, TetrahedronVolumeAndHexDecomposition) {
-  EXPECT_NEAR(tet_volume(Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)), 1.0 / 6, 1e-15);
+  EXPECT_NEAR(tet_volume(Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)), 1.0 / 6,
+              1e-15);
   Mesh box = make_box_lattice(Vec3(2, 3, 4), {1, 1, 1});
   EXPECT_NEAR(hex_volume(box, box.hexahedra[0]), 24.0, 1e-12);
 }
@@ -113,16 +116,20 @@ TEST(BodyTest, RefusesBadSpecsSayingWhy) {
     mutate(s);
     return build_model(s, &m);
   };
-  EXPECT_NE(err([](BodySpec& s) { s.density = -1; }).find("density must be > 0"), std::string::npos);
+  EXPECT_NE(err([](BodySpec& s) { s.density = -1; }).find("density must be > 0"),
+            std::string::npos);
   EXPECT_NE(err([](BodySpec& s) { s.groups[0].card.conical.d = 0; }).find("\"all\": d must be > 0"),
             std::string::npos);
   EXPECT_NE(err([](BodySpec& s) {
-              s.groups.insert(s.groups.begin(), {"none", Hooke(1, 1), kEdge, {"nowhere"}, Vec3::Zero(), 10});
+              s.groups.insert(s.groups.begin(),
+                              {"none", Hooke(1, 1), kEdge, {"nowhere"}, Vec3::Zero(), 10});
             }).find("\"none\" matches no spring"),
             std::string::npos);
-  EXPECT_NE(err([](BodySpec& s) { s.groups[0].families = kEdge; s.groups.push_back(s.groups[0]);
-                                  s.groups[1].name = "edges2"; })
-                .find("matches no spring"),
+  EXPECT_NE(err([](BodySpec& s) {
+              s.groups[0].families = kEdge;
+              s.groups.push_back(s.groups[0]);
+              s.groups[1].name = "edges2";
+            }).find("matches no spring"),
             std::string::npos);
   EXPECT_NE(err([](BodySpec& s) {
               s.groups[0].families = kEdge;
@@ -192,8 +199,8 @@ TEST(BodyTest, StrainMappingMakesCompressionForceIndependentOfResolution) {
   const double f8 = CompressForce(8, 0.2, Mapping::kStrain);
   const double f16 = CompressForce(16, 0.2, Mapping::kStrain);
   ASSERT_GT(f8, 0);
-  std::printf("20 %% compression: 8^3 lattice %.6g N, 16^3 lattice %.6g N, difference %.3g %%\n", f8,
-              f16, 100 * std::abs(f16 / f8 - 1));
+  std::printf("20 %% compression: 8^3 lattice %.6g N, 16^3 lattice %.6g N, difference %.3g %%\n",
+              f8, f16, 100 * std::abs(f16 / f8 - 1));
   EXPECT_NEAR(f16 / f8, 1.0, 0.02) << "f8 = " << f8 << " N, f16 = " << f16 << " N";
   // Without the mapping (each mesh spring is the card's spring) the force depends on resolution.
   const double r8 = CompressForce(8, 0.2, Mapping::kRaw);

@@ -47,7 +47,10 @@ double LoadByBisection(const ConicalLaw& law, double delta) {
   long double lo = 0, hi = law.solid_load();
   for (int i = 0; i < 200; ++i) {
     const long double mid = 0.5L * (lo + hi);
-    if (law.deflection(static_cast<double>(mid)) < delta) lo = mid; else hi = mid;
+    if (law.deflection(static_cast<double>(mid)) < delta)
+      lo = mid;
+    else
+      hi = mid;
   }
   return static_cast<double>(0.5L * (lo + hi));
 }
@@ -55,7 +58,11 @@ double LoadByBisection(const ConicalLaw& law, double delta) {
 TEST(ConicalCardTest, RejectsInvalidCardsNamingTheParameter) {
   ConicalCard ok{50, 1, 2, 8, 90, 3};
   EXPECT_EQ(validate(ok), "");
-  auto with = [&](auto mutate) { ConicalCard c = ok; mutate(c); return validate(c); };
+  auto with = [&](auto mutate) {
+    ConicalCard c = ok;
+    mutate(c);
+    return validate(c);
+  };
   EXPECT_NE(with([](ConicalCard& c) { c.d = 0; }).find("d must be > 0"), std::string::npos);
   EXPECT_NE(with([](ConicalCard& c) { c.d = -1; }).find("d must be > 0"), std::string::npos);
   EXPECT_NE(with([](ConicalCard& c) { c.D1 = 8; }).find("D1 must be < D2"), std::string::npos);
@@ -65,7 +72,10 @@ TEST(ConicalCardTest, RejectsInvalidCardsNamingTheParameter) {
   EXPECT_NE(with([](ConicalCard& c) { c.L0 = INFINITY; }).find("L0 must be a finite"),
             std::string::npos);
   // Table 2 white lattice (d = 1.5) is Type I with Ls = sqrt(4.5^2 - 3^2) = 3.354.
-  EXPECT_NE(with([](ConicalCard& c) { c.d = 1.5; c.L0 = 3.3; }).find("L0 must be > solid height"),
+  EXPECT_NE(with([](ConicalCard& c) {
+              c.d = 1.5;
+              c.L0 = 3.3;
+            }).find("L0 must be > solid height"),
             std::string::npos);
   EXPECT_NE(with([](ConicalCard& c) { c.G = 0; }).find("G must be > 0"), std::string::npos);
 }
@@ -129,7 +139,8 @@ TEST(ConicalLawTest, ExactInverseMatchesBisection) {
     for (int i = 0; i <= 400; ++i) {
       const double delta = law.stroke() * (i / 400.0) * 0.99999;
       const double ref = LoadByBisection(law, delta);
-      EXPECT_NEAR(law.evaluate_exact(delta).force, ref, 1e-11 * std::max(ref, law.transition_load()))
+      EXPECT_NEAR(law.evaluate_exact(delta).force, ref,
+                  1e-11 * std::max(ref, law.transition_load()))
           << "delta = " << delta;
     }
   }
@@ -295,7 +306,8 @@ TEST(ConicalPrecompressionTest, ShiftedLawIsThePlainLawAtDelta0PlusDeltaMinusThe
         EXPECT_EQ(law.rest_stiffness(), plain.evaluate_exact(delta0).stiffness);
         EXPECT_EQ(law.remaining_stroke(), S - delta0);
         std::vector<double> x = {-2 * delta0, -delta0, 0.0, dt - delta0, S - delta0};
-        for (int i = 0; i < 400; ++i) x.push_back(-1.5 * delta0 + u(rng) * (1.1 * S + 0.5 * delta0));
+        for (int i = 0; i < 400; ++i)
+          x.push_back(-1.5 * delta0 + u(rng) * (1.1 * S + 0.5 * delta0));
         // Exact up to the rounding of the final subtraction (the compiler may fuse it with the
         // law's last multiplication): 1 ulp of the largest of operands and result.
         for (double d : x) {
@@ -348,9 +360,9 @@ TEST(ConicalPrecompressionTest, BatchMatchesScalarBitForBit) {
       // not with the law's last multiplication, the compiler's choice per loop): 1 ulp.
       for (int i = 0; i < n; ++i) {
         const LawSample s = law.evaluate(x[i]);
-        const double ulp = std::numeric_limits<double>::epsilon() *
-                           std::max({std::abs(s.force + law.preload()), law.preload(),
-                                     std::abs(s.force)});
+        const double ulp =
+            std::numeric_limits<double>::epsilon() *
+            std::max({std::abs(s.force + law.preload()), law.preload(), std::abs(s.force)});
         ASSERT_NEAR(f[i], s.force, ulp) << "delta = " << x[i];
         ASSERT_EQ(k[i], s.stiffness) << "delta = " << x[i];
       }

@@ -47,8 +47,8 @@ Model Block(double radius, ToolShape shape = ToolShape::kSphere,
   c.conical = ConicalCard{5e7, 1e-3, 2e-3, 8e-3, 10e-3, 3};
   c.stiffness_cap = 1e3;
   Model m;
-  EXPECT_EQ(build_model(LatticeWithTool(Vec3(0.04, 0.04, 0.02), {8, 8, 4}, c, radius, shape,
-                                        integ, 30, friction),
+  EXPECT_EQ(build_model(LatticeWithTool(Vec3(0.04, 0.04, 0.02), {8, 8, 4}, c, radius, shape, integ,
+                                        30, friction),
                         &m),
             "");
   return m;
@@ -169,8 +169,8 @@ TEST(ToolContactTest, SphereOnAFlatFaceMatchesTheAxisymmetricIntegralWhereverItS
         tool_contact(m, 0, R, at + Vec3(0, 0, kTop + R - D), m.rest, nullptr, 0, &c);
         // Within 0.2 % wherever the ball sits: the Gauss rules' error, far below a node-spacing
         // ripple.
-        EXPECT_NEAR(c.force.z(), expect, 2e-3 * expect) << "R " << R << " D " << D << " at "
-                                                        << at.transpose();
+        EXPECT_NEAR(c.force.z(), expect, 2e-3 * expect)
+            << "R " << R << " D " << D << " at " << at.transpose();
         EXPECT_NEAR(c.force.head<2>().norm(), 0.0, 2e-3 * expect);
         EXPECT_NEAR(c.depth, D, 1e-3 * D);
       }
@@ -190,8 +190,8 @@ TEST(ProxyTest, NeverCrossesTheSurfaceHoweverFarTheDeviceJumps) {
   EXPECT_EQ(p.contacts, 0);
   EXPECT_NEAR((p.proxy - p.center).norm(), 0.0, 1e-15);
   // Teleport to below the block (through it): the proxy stops on the top face.
-  for (const Vec3& target : {Vec3(0.021, 0.019, -0.05), Vec3(0.02, 0.02, 0.01),
-                             Vec3(0.03, 0.01, kTop - 0.5 * R)}) {
+  for (const Vec3& target :
+       {Vec3(0.021, 0.019, -0.05), Vec3(0.02, 0.02, 0.01), Vec3(0.03, 0.01, kTop - 0.5 * R)}) {
     set_probe(s, 0, target);
     update_proxy(m, 0, s.x, &cand, &p);
     EXPECT_GT(p.proxy.z(), kTop) << target.transpose();
@@ -265,8 +265,8 @@ TEST(SurfaceContactTest, SmallProbeAtAFaceCentreIsFeltFromTheStartAndHoldsSteady
     c.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};
     c.stiffness_cap = 20;
     c.damping = 0.02;
-    BodySpec b = LatticeWithTool(Vec3(0.07, 0.07, 0.04), {7, 7, 4}, c, 0.0025,
-                                 ToolShape::kSphere, integ, 5);
+    BodySpec b =
+        LatticeWithTool(Vec3(0.07, 0.07, 0.04), {7, 7, 4}, c, 0.0025, ToolShape::kSphere, integ, 5);
     b.options.newton_iterations = 3;
     b.options.cg_iterations = 80;
     const ProbeSpec p = b.probes[0];
@@ -294,11 +294,11 @@ TEST(SurfaceContactTest, SmallProbeAtAFaceCentreIsFeltFromTheStartAndHoldsSteady
     }
     const int n = hold / 2;
     const double mean = hold_sum / n, sd = std::sqrt(std::max(0.0, hold_sum2 / n - mean * mean));
-    std::printf("%s: first force at %.3f mm, hold %.4f N +- %.2g %%, deepest penetration %.3f mm "
-                "(barrier %.3f mm), rollbacks %lu\n",
-                integrator_name(integ), first * 1e3, mean, 100 * sd / mean, worst_inside * 1e3,
-                kContactDepthFraction * R * 1e3,
-                static_cast<unsigned long>(s.counters.rollbacks));
+    std::printf(
+        "%s: first force at %.3f mm, hold %.4f N +- %.2g %%, deepest penetration %.3f mm "
+        "(barrier %.3f mm), rollbacks %lu\n",
+        integrator_name(integ), first * 1e3, mean, 100 * sd / mean, worst_inside * 1e3,
+        kContactDepthFraction * R * 1e3, static_cast<unsigned long>(s.counters.rollbacks));
     EXPECT_LT(first, 1e-4);
     EXPECT_LT(sd, 0.01 * mean);
     EXPECT_LT(worst_inside, kContactDepthFraction * R);
@@ -386,9 +386,10 @@ TEST(FrictionTest, DragOverTheBodySlidesWithTheCoulombForceOnTheSurface) {
     mean_ratio[with_friction] /= n;
     EXPECT_EQ(s.counters.rollbacks, 0u);
     if (!with_friction) continue;
-    std::printf("sliding on %d of the last 700 ticks, largest |F_friction / (mu F_n) - 1| %.3g, "
-                "device F_t / F_n: mean %.3f with mu %.2f, %.3f without friction\n",
-                sliding, worst, mean_ratio[1], mu, mean_ratio[0]);
+    std::printf(
+        "sliding on %d of the last 700 ticks, largest |F_friction / (mu F_n) - 1| %.3g, "
+        "device F_t / F_n: mean %.3f with mu %.2f, %.3f without friction\n",
+        sliding, worst, mean_ratio[1], mu, mean_ratio[0]);
     EXPECT_GT(sliding, 600);
     EXPECT_LT(worst, 0.05);
     EXPECT_NEAR(mean_ratio[1] - mean_ratio[0], mu, 0.25 * mu);

@@ -1,14 +1,13 @@
 // The runs path of the step (lattice springs read and written as contiguous streams, chunk by
 // chunk) against a per-spring evaluation written out here from the law, and the hard stop on a
 // lattice when a spring is crossed within one step (the pass it may skip must not be skipped).
-#include "core/step.h"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
 #include "core/body.h"
+#include "core/step.h"
 
 namespace conica {
 namespace {
@@ -59,7 +58,8 @@ TEST(RunsTest, LatticeForcesMatchThePerSpringLaw) {
       const double b = m.deflection_scale[k];
       const double delta = b * (m.rest_length[k] - w.norm());
       nonlinear += delta > g.law->transition_deflection();
-      const double load = g.law->evaluate(delta).force + g.card.damping * (-b * d.dot(s.v[j] - s.v[i]));
+      const double load =
+          g.law->evaluate(delta).force + g.card.damping * (-b * d.dot(s.v[j] - s.v[i]));
       f[i] -= m.force_scale[k] * load * d;
       f[j] += m.force_scale[k] * load * d;
     }
@@ -89,7 +89,8 @@ TEST(RunsTest, HardStopCatchesASpringCrossedWithinOneStep) {
   int node = -1, neighbour = -1;
   for (int i = 0; i < m.num_nodes() && node < 0; ++i) {
     const Vec3 r = m.rest[i];
-    if (std::abs(r.x() - 0.02) < 1e-9 && std::abs(r.y() - 0.02) < 1e-9 && std::abs(r.z() - 0.02) < 1e-9)
+    if (std::abs(r.x() - 0.02) < 1e-9 && std::abs(r.y() - 0.02) < 1e-9 &&
+        std::abs(r.z() - 0.02) < 1e-9)
       node = i;
   }
   ASSERT_GE(node, 0);

@@ -171,8 +171,8 @@ TEST(StepTest, ProbeReactionBalancesTheSupportsAtEquilibrium) {
     EXPECT_GT(s.probes[0].contacts, 0);
     // Body at rest: the probe pushes it down with -f, the supports hold it with +f.
     EXPECT_NEAR((f - support).norm(), 0.0, 1e-3 * f.norm())
-        << integrator_name(integ) << " probe " << f.transpose() << " support " << support.transpose()
-        << " kinetic " << kinetic_energy(m, s);
+        << integrator_name(integ) << " probe " << f.transpose() << " support "
+        << support.transpose() << " kinetic " << kinetic_energy(m, s);
     EXPECT_LT(std::abs(f.x()) + std::abs(f.y()), 1e-3 * f.z());  // symmetric press
     EXPECT_EQ(s.counters.rollbacks, 0u);
   }
@@ -373,7 +373,7 @@ TEST(StepTest, CreepUnderConstantLoadFollowsTheRetardationTime) {
   const double ke = 100, km = 300, tau = 0.2, F = 0.1, dt = 1e-4;
   Model m = OneSpring(Sls(ke, km, tau), 0.01, 1e-5, Integrator::kSymplecticEuler, dt);
   m.options.gravity = Vec3(0, 0, -F / 1e-5);  // constant load F on node 1
-  m.options.mass_damping = 5e3;  // 1/s: mu h = 0.5, inertia settles in ~1e-4 s << tau
+  m.options.mass_damping = 5e3;               // 1/s: mu h = 0.5, inertia settles in ~1e-4 s << tau
   State s = make_state(m);
   Workspace ws(m);
   const double tau_c = tau * (ke + km) / ke;

@@ -33,7 +33,7 @@ TEST(VolumeTest, HexahedronVolumeIsExactForAffineMapsAndPlanarFaces) {
   for (Vec3& p : x) p = A * p + Vec3(0.3, -1, 2);
   EXPECT_NEAR(hex_volume_gradient(x.data(), g.data()), A.determinant(), 1e-14);
   // A frustum of a square pyramid (planar faces): h (A1 + A2 + sqrt(A1 A2)) / 3.
-  const Hex f = {Vec3(0, 0, 0), Vec3(2, 0, 0),     Vec3(2, 2, 0),     Vec3(0, 2, 0),
+  const Hex f = {Vec3(0, 0, 0),     Vec3(2, 0, 0),     Vec3(2, 2, 0),     Vec3(0, 2, 0),
                  Vec3(0.5, 0.5, 1), Vec3(1.5, 0.5, 1), Vec3(1.5, 1.5, 1), Vec3(0.5, 1.5, 1)};
   EXPECT_NEAR(hex_volume_gradient(f.data(), g.data()), (4 + 1 + 2) / 3.0, 1e-14);
   // Mirrored node order: the same volume with the opposite sign.
@@ -60,7 +60,8 @@ TEST(VolumeTest, GradientsMatchFiniteDifferences) {
       xp[a][c] += h;
       xm[a][c] -= h;
       const double fd = (hex_volume_gradient(xp.data(), scratch.data()) -
-                         hex_volume_gradient(xm.data(), scratch.data())) / (2 * h);
+                         hex_volume_gradient(xm.data(), scratch.data())) /
+                        (2 * h);
       EXPECT_NEAR(g[a][c], fd, 1e-9) << "hex node " << a << " axis " << c;
     }
   std::array<Vec3, 4> t = {Vec3(0.1, 0, 0), Vec3(1, 0.2, 0), Vec3(0, 1, 0.3), Vec3(0.2, 0.1, 1)};
@@ -94,8 +95,8 @@ Model VolumeBody(bool tets, double kappa, double spread = 0, double shear = 0) {
   if (tets) {
     // Five tetrahedra per cube (alternating so that faces match is not needed for forces).
     for (const auto& h : b.mesh.hexahedra) {
-      static constexpr int kFive[5][4] = {{0, 1, 3, 4}, {1, 2, 3, 6}, {1, 4, 5, 6}, {3, 6, 7, 4},
-                                          {1, 3, 4, 6}};
+      static constexpr int kFive[5][4] = {
+          {0, 1, 3, 4}, {1, 2, 3, 6}, {1, 4, 5, 6}, {3, 6, 7, 4}, {1, 3, 4, 6}};
       for (const auto& t : kFive) b.mesh.tetrahedra.push_back({h[t[0]], h[t[1]], h[t[2]], h[t[3]]});
     }
     b.mesh.hexahedra.clear();
@@ -127,8 +128,7 @@ TEST(VolumeTest, ForcesAreMinusTheGradientOfTheStoredEnergy) {
         q.x[i][c] -= h;
         const double fd = -(potential_energy(m, p) - potential_energy(m, q)) / (2 * h);
         EXPECT_NEAR(ws.force[i][c], fd, 1e-6 * (1 + std::abs(fd)))
-            << "kind " << kind << " node " << i
-            << " axis " << c;
+            << "kind " << kind << " node " << i << " axis " << c;
       }
   }
 }
@@ -214,8 +214,8 @@ TEST(VolumeTest, SimpleShearCarriesTheShearModulusAtAnyAngle) {
       for (int i = 0; i < m.num_nodes(); ++i)
         if (m.rest[i].z() > H - 1e-9) fx += ws.force[i].x() - ws0.force[i].x();
       const double area = 0.02 * 0.03;
-      EXPECT_NEAR(fx / (-mu * gamma * area), 1.0, 1e-9) << (tets ? "tets" : "hexes") << ", gamma "
-                                                         << gamma;
+      EXPECT_NEAR(fx / (-mu * gamma * area), 1.0, 1e-9)
+          << (tets ? "tets" : "hexes") << ", gamma " << gamma;
     }
   }
 }

@@ -1,13 +1,13 @@
 // conica-lab contact as a user runs it: a short press on the paper cube, and bad options.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
-#include "lab_run.h"
 #include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
 #include <string>
+
+#include "lab_run.h"
 
 namespace {
 

@@ -1,8 +1,6 @@
 // conica-lab mesh as a user runs it: the built binary on a good and a damaged file.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
-#include "lab_run.h"
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -11,6 +9,8 @@
 #include <cstdio>
 #include <fstream>
 #include <string>
+
+#include "lab_run.h"
 
 namespace {
 
@@ -74,15 +74,16 @@ std::string slurp(const std::string& path) {
 TEST(LabRun, SameInputsGiveTheSameBytesAndASummary) {
   const std::string scene = std::string(CONICA_SOURCE_DIR) + "/configs/paper-cube.pbtxt";
   const std::string script = std::string(CONICA_SOURCE_DIR) + "/configs/probes/press-center.csv";
-  const std::string out1 = ::testing::TempDir() + "run1.csv", out2 = ::testing::TempDir() + "run2.csv";
-  const std::string args = "run --scene '" + scene + "' --probe-script '" + script +
-                           "' --relative --ticks 1500 --out ";
+  const std::string out1 = ::testing::TempDir() + "run1.csv",
+                    out2 = ::testing::TempDir() + "run2.csv";
+  const std::string args =
+      "run --scene '" + scene + "' --probe-script '" + script + "' --relative --ticks 1500 --out ";
   const LabRun a = run_lab(args + "'" + out1 + "'");
   const LabRun b = run_lab(args + "'" + out2 + "'");
   ASSERT_EQ(a.status, 0) << a.output;
   ASSERT_EQ(b.status, 0) << b.output;
-  EXPECT_THAT(a.output, ::testing::MatchesRegex(
-                            "max \\|force\\|: [0-9.e+-]+ N, nan: 0, rollbacks: 0\n"));
+  EXPECT_THAT(a.output,
+              ::testing::MatchesRegex("max \\|force\\|: [0-9.e+-]+ N, nan: 0, rollbacks: 0\n"));
   const std::string c1 = slurp(out1), c2 = slurp(out2);
   EXPECT_EQ(c1, c2);  // bit for bit
   EXPECT_EQ(c1.rfind("tick,t,probe,fx,fy,fz,contact\n", 0), 0u);
@@ -94,9 +95,9 @@ TEST(LabRun, SameInputsGiveTheSameBytesAndASummary) {
 TEST(LabRun, BadProbeScriptNamesFileLineAndColumn) {
   const std::string bad = ::testing::TempDir() + "bad-script.csv";
   std::ofstream(bad) << "t,probe,x,y,z\n0,0,0,0,0\n0.1,0,0,zero,0\n";
-  const LabRun r = run_lab("run --scene '" + std::string(CONICA_SOURCE_DIR) +
-                           "/configs/paper-cube.pbtxt' --probe-script '" + bad +
-                           "' --ticks 10 --out -");
+  const LabRun r =
+      run_lab("run --scene '" + std::string(CONICA_SOURCE_DIR) +
+              "/configs/paper-cube.pbtxt' --probe-script '" + bad + "' --ticks 10 --out -");
   EXPECT_EQ(r.status, 2);
   EXPECT_THAT(r.output, HasSubstr("bad-script.csv:3:9: field y: \"zero\" is not a finite number"));
 }

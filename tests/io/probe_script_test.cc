@@ -16,7 +16,8 @@ std::string Error(std::string_view text) {
 }
 
 TEST(ProbeScript, KeyframesInterpolateLinearlyAndHold) {
-  auto r = parse_probe_script("# press\n\nt,probe,x,y,z\r\n0,0,0,0,1\n1,0,0,0,0\n0.5,1,1,1,1\n", "s.csv");
+  auto r = parse_probe_script("# press\n\nt,probe,x,y,z\r\n0,0,0,0,1\n1,0,0,0,0\n0.5,1,1,1,1\n",
+                              "s.csv");
   ASSERT_TRUE(r.ok()) << r.error();
   const ProbeScript& s = r.value();
   ASSERT_EQ(s.probes.size(), 2u);
@@ -24,7 +25,7 @@ TEST(ProbeScript, KeyframesInterpolateLinearlyAndHold) {
   ASSERT_TRUE(s.position(0, 0.25, &x));
   EXPECT_DOUBLE_EQ(x.z(), 0.75);  // a quarter of the way from z = 1 to z = 0
   ASSERT_TRUE(s.position(0, 7, &x));
-  EXPECT_EQ(x, Vec3(0, 0, 0));  // holds after the last keyframe
+  EXPECT_EQ(x, Vec3(0, 0, 0));           // holds after the last keyframe
   EXPECT_FALSE(s.position(1, 0.4, &x));  // not present before its first keyframe
   EXPECT_FALSE(s.position(2, 0.4, &x));
   EXPECT_DOUBLE_EQ(s.end_time(), 1.0);
@@ -32,15 +33,18 @@ TEST(ProbeScript, KeyframesInterpolateLinearlyAndHold) {
 
 TEST(ProbeScript, ServerFormatErrorsNameFileLineAndColumn) {
   EXPECT_EQ(Error("0,0,0,0,0\n"), "s.csv:1:1: expected the header t,probe,x,y,z");
-  EXPECT_EQ(Error("# only a comment\n"), "s.csv: empty probe script (expected the header t,probe,x,y,z)");
+  EXPECT_EQ(Error("# only a comment\n"),
+            "s.csv: empty probe script (expected the header t,probe,x,y,z)");
   EXPECT_EQ(Error("t,probe,x,y,z\n"), "s.csv: no samples (expected lines t,probe,x,y,z)");
   EXPECT_EQ(Error("t,probe,x,y,z\n0,0,0,0,0\n0,0,0,0,1\n"),
             "s.csv:3:1: time must increase for probe 0 (0 s twice)");
   EXPECT_EQ(Error("t,probe,x,y,z\n1,0,0,0,0\n0.5,0,0,0,1\n"),
             "s.csv:3:1: time goes backwards for probe 0 (0.5 s after 1 s)");
-  EXPECT_EQ(Error("t,probe,x,y,z\n0,64,0,0,0\n"), "s.csv:2:3: probe must be an integer in 0..63, got 64");
+  EXPECT_EQ(Error("t,probe,x,y,z\n0,64,0,0,0\n"),
+            "s.csv:2:3: probe must be an integer in 0..63, got 64");
   EXPECT_EQ(Error("t,probe,x,y,z\n0,0,0,,0\n"), "s.csv:2:7: field y: \"\" is not a finite number");
-  EXPECT_EQ(Error("t,probe,x,y,z\n0,0,0,0,inf\n"), "s.csv:2:9: field z: \"inf\" is not a finite number");
+  EXPECT_EQ(Error("t,probe,x,y,z\n0,0,0,0,inf\n"),
+            "s.csv:2:9: field z: \"inf\" is not a finite number");
   // Fractions of a bounding box (relative scripts) have no metre limit in the server format.
   EXPECT_TRUE(parse_probe_script("t,probe,x,y,z\n0,0,0.5,0.5,140\n", "s.csv").ok());
 }
@@ -49,7 +53,8 @@ TEST(ProbeScript, ClientFormatChecksMetres) {
   const ProbeScriptFormat f = client_trajectory_format();
   auto r = parse_probe_rows("0,0,0.02,0.02,450\n", "mm.csv", f);
   ASSERT_FALSE(r.ok());
-  EXPECT_EQ(r.error(), "mm.csv:1:15: position more than 100 m from the origin (the file must be in metres)");
+  EXPECT_EQ(r.error(),
+            "mm.csv:1:15: position more than 100 m from the origin (the file must be in metres)");
   r = parse_probe_rows("time,probe,x,y,z\n0,3,0.02,0.02,0.045\n", "m.csv", f);
   ASSERT_TRUE(r.ok()) << r.error();
   EXPECT_EQ(r.value().front().line, 2);

@@ -89,13 +89,15 @@ TEST(SceneTest, WrongScenesAreRefusedWithLineAndReason) {
   EXPECT_NE(mesh.find("s.pbtxt:3:1: cannot load mesh"), std::string::npos) << mesh;
   EXPECT_NE(mesh.find("nowhere.msh"), std::string::npos);
   // A spring group that matches nothing, at its line.
-  const std::string none = with("fixed {", "group { name: \"none\" card { hooke { k: 1 length: 1 } } "
-                                           "regions: [\"nope\"] }\nfixed {");
+  const std::string none = with("fixed {",
+                                "group { name: \"none\" card { hooke { k: 1 length: 1 } } "
+                                "regions: [\"nope\"] }\nfixed {");
   EXPECT_NE(none.find("s.pbtxt:6:1:"), std::string::npos) << none;
   EXPECT_NE(none.find("\"none\" matches no spring"), std::string::npos) << none;
   // A fixed selector that matches nothing.
   const std::string fixed = with("offset: 0", "offset: 5");
-  EXPECT_NE(fixed.find("s.pbtxt:6:1: fixed selector 0 matches no node"), std::string::npos) << fixed;
+  EXPECT_NE(fixed.find("s.pbtxt:6:1: fixed selector 0 matches no node"), std::string::npos)
+      << fixed;
   // A lattice within the per-axis bound but too large in total (400^3 would need ~100 GB).
   const std::string huge = with("cells: [2, 2, 1]", "cells: [400, 400, 400]");
   EXPECT_NE(huge.find("s.pbtxt:3:1: lattice of 64000000 cells is over the limit of 100000"),
@@ -142,8 +144,11 @@ TEST(SceneTest, PrecompressionIsReadInMetresAndCheckedAgainstTheStroke) {
 }
 
 TEST(SceneTest, ActiveRegionIsReadAndCheckedInTheSolver) {
-  auto with = [](const std::string& solver) { return std::string(kGood) + "solver { " + solver + " }\n"; };
-  auto ok = parse_scene(with("active_region { tolerance: 3e-4 far_every: 4 }"), "s.pbtxt", kConfigs);
+  auto with = [](const std::string& solver) {
+    return std::string(kGood) + "solver { " + solver + " }\n";
+  };
+  auto ok =
+      parse_scene(with("active_region { tolerance: 3e-4 far_every: 4 }"), "s.pbtxt", kConfigs);
   ASSERT_TRUE(ok) << ok.error();
   const SolverOptions& o = ok.value().spec.options;
   EXPECT_TRUE(o.active_region);
@@ -165,7 +170,8 @@ TEST(SceneTest, ActiveRegionIsReadAndCheckedInTheSolver) {
   };
   for (const auto& [solver, why] : bad) {
     const std::string e = ErrorOf(with(solver));
-    EXPECT_NE(e.find("s.pbtxt:7:1: solver.active_region: "), std::string::npos) << solver << ": " << e;
+    EXPECT_NE(e.find("s.pbtxt:7:1: solver.active_region: "), std::string::npos)
+        << solver << ": " << e;
     EXPECT_NE(e.find(why), std::string::npos) << solver << ": " << e;
   }
   // The region's lists hold springs only: no volume stiffness with it.

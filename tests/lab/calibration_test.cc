@@ -159,9 +159,10 @@ TEST(CalibrationTest, RecoversAKnownPrecompression) {
     const Curve c = Noisy(grid, truth, noise, 7);
     const FitResult r = calibrate(spec, {c}, o);
     ASSERT_EQ(r.error, "");
-    std::printf("noise %.2f: E_c %.6g, taper %.6g, stroke %.6g, pre-compression %.6g S; error %.4f %%\n",
-                noise, r.shape.modulus, r.shape.taper, r.shape.stroke, r.shape.precompression,
-                100 * r.surrogate_error);
+    std::printf(
+        "noise %.2f: E_c %.6g, taper %.6g, stroke %.6g, pre-compression %.6g S; error %.4f %%\n",
+        noise, r.shape.modulus, r.shape.taper, r.shape.stroke, r.shape.precompression,
+        100 * r.surrogate_error);
     const auto fit = surrogate_force(spec, r.card, r.grid);
     const auto clean = surrogate_force(spec, truth_card, r.grid);
     const ConicalLaw got(r.card);
@@ -182,7 +183,8 @@ TEST(CalibrationTest, RecoversAKnownPrecompression) {
   o.fit_precompression = false;
   const FitResult plain = calibrate(spec, {[&] {
                                       Curve c;
-                                      for (int k = 0; k < 200; ++k) c.push_back({grid[k], truth[k]});
+                                      for (int k = 0; k < 200; ++k)
+                                        c.push_back({grid[k], truth[k]});
                                       return c;
                                     }()},
                                     o);
@@ -255,8 +257,8 @@ TEST(CalibrationTest, RecoversKnownTwoCardBodies) {
   const std::vector<CardShape> want = {{2e5, 0.2, 0.85}, {2e5 * 36 / 17, 0.1, 0.35}};
   std::vector<double> grid;
   for (int k = 1; k <= 200; ++k) grid.push_back(o.max_strain * 0.03 * k / 200);
-  const auto groups = split_groups(spec, {card_with_shape(base, want[0]),
-                                          card_with_shape(base, want[1])});
+  const auto groups =
+      split_groups(spec, {card_with_shape(base, want[0]), card_with_shape(base, want[1])});
   const auto truth = surrogate_force(spec, groups, grid);
   for (double noise : {0.0, 0.01}) {
     const Curve c = Noisy(grid, truth, noise, 11);
@@ -265,11 +267,11 @@ TEST(CalibrationTest, RecoversKnownTwoCardBodies) {
     ASSERT_EQ(r.shapes.size(), 2u);
     const auto clean = surrogate_force(spec, groups, r.grid);
     const double curve_err = average_relative_error(r.surrogate, clean, r.first);
-    std::printf("noise %.2f: fit %.4f %%, against the truth %.4f %%; edges E %.4g taper %.3f "
-                "stroke %.3f, diagonals E %.4g taper %.3f stroke %.3f\n",
-                noise, 100 * r.surrogate_error, 100 * curve_err, r.shapes[0].modulus,
-                r.shapes[0].taper, r.shapes[0].stroke, r.shapes[1].modulus, r.shapes[1].taper,
-                r.shapes[1].stroke);
+    std::printf(
+        "noise %.2f: fit %.4f %%, against the truth %.4f %%; edges E %.4g taper %.3f "
+        "stroke %.3f, diagonals E %.4g taper %.3f stroke %.3f\n",
+        noise, 100 * r.surrogate_error, 100 * curve_err, r.shapes[0].modulus, r.shapes[0].taper,
+        r.shapes[0].stroke, r.shapes[1].modulus, r.shapes[1].taper, r.shapes[1].stroke);
     EXPECT_NEAR(r.moduli.anisotropy, 1, 1e-9);
     if (noise == 0) {
       EXPECT_LT(r.surrogate_error, 1e-3);
@@ -342,8 +344,7 @@ TEST(CalibrationTest, ColumnFloorFollowsConicalSumsAndBoundsEarlyStiffening) {
     best = std::min(best, e);
   }
   const double bound = best / (n - first);
-  std::printf("1 + 3 eps: floor %.3f %%, linear-phase bound %.3f %%\n", 100 * b.error,
-              100 * bound);
+  std::printf("1 + 3 eps: floor %.3f %%, linear-phase bound %.3f %%\n", 100 * b.error, 100 * bound);
   EXPECT_GE(b.error, bound * (1 - 1e-9));
   // A finer basis (32 x 32 tapers x strokes) solved exactly as a linear program (min sum t,
   // -t <= A w - 1 <= t, w, t >= 0) by an independent solver (HiGHS): 12.61 %.

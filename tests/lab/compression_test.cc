@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
-
 #include <cmath>
 #include <cstdio>
 
@@ -148,9 +147,9 @@ TEST(CompressionTest, VolumeAndShearStiffnessKeepTheCompressedBodyStable) {
     spec.spread_modulus = kind == kVolumeShear ? kappa : 0;
     spec.shear_modulus = kind == kVolumeShear ? E0 / 3 : 0;
     Model cell, body;
-    ASSERT_EQ(make_uniaxial_cell(spec.groups, Mapping::kStrain, 0.01, &cell, kappa,
-                                 spec.shear_modulus),
-              "");
+    ASSERT_EQ(
+        make_uniaxial_cell(spec.groups, Mapping::kStrain, 0.01, &cell, kappa, spec.shear_modulus),
+        "");
     // Small strain: the lattice, the bulk term and the shear term (C11 += 4/3 mu, C12 -= 2/3 mu,
     // C44 += mu) in the analytic modulus.
     const double Ek = LatticeYoungZ(law.k0(), card.conical.L0, kappa, spec.shear_modulus);
@@ -210,16 +209,21 @@ TEST(CompressionTest, LayerSpreadMeasuresTheDepartureFromTheHomogeneousState) {
   };
   const double lat = 1.3, ax = 0.5;
   EXPECT_NEAR(layer_spread(m, map([&](const Vec3& r) {
-                return Vec3(c.x() + lat * (r.x() - c.x()), c.y() + lat * (r.y() - c.y()), ax * r.z());
-              })), 0, 1e-15);
+                             return Vec3(c.x() + lat * (r.x() - c.x()),
+                                         c.y() + lat * (r.y() - c.y()), ax * r.z());
+                           })),
+              0, 1e-15);
   const double shift = 2e-3;
   EXPECT_NEAR(layer_spread(m, map([&](const Vec3& r) {
-                return Vec3(r.x() + shift * r.z() / H, r.y(), ax * r.z());
-              })), std::hypot(a + shift, a) - std::sqrt(2.0) * a, 1e-12);
+                             return Vec3(r.x() + shift * r.z() / H, r.y(), ax * r.z());
+                           })),
+              std::hypot(a + shift, a) - std::sqrt(2.0) * a, 1e-12);
   EXPECT_NEAR(layer_spread(m, map([&](const Vec3& r) {
-                const double g = lat * (std::lround(r.z() / 0.01) % 2 ? 1.1 : 1.0);
-                return Vec3(c.x() + g * (r.x() - c.x()), c.y() + g * (r.y() - c.y()), ax * r.z());
-              })), 0.1 * lat * std::sqrt(2.0) * a, 1e-12);
+                             const double g = lat * (std::lround(r.z() / 0.01) % 2 ? 1.1 : 1.0);
+                             return Vec3(c.x() + g * (r.x() - c.x()), c.y() + g * (r.y() - c.y()),
+                                         ax * r.z());
+                           })),
+              0.1 * lat * std::sqrt(2.0) * a, 1e-12);
 }
 
 }  // namespace

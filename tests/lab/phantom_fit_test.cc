@@ -8,8 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -110,8 +110,10 @@ TEST(CalibrationFullBodyTest, SpreadTermEvensTheLayersOfTheCompressedCylinder) {
                                   0.00285837853};
   const Fitted fits[] = {
       {nospread_card, 1198725.49, 0, false},
-      {{2.96966327e10, 0.00104463246, 0.00666993017, 0.008, 0.01, 3, 0.000612511759}, 1185104.42,
-       1185104.42, false},
+      {{2.96966327e10, 0.00104463246, 0.00666993017, 0.008, 0.01, 3, 0.000612511759},
+       1185104.42,
+       1185104.42,
+       false},
       {nospread_card, 0, 0, true},
   };
   double spread_of[3];
@@ -130,8 +132,8 @@ TEST(CalibrationFullBodyTest, SpreadTermEvensTheLayersOfTheCompressedCylinder) {
     CompressionStats st;
     compression_curve(m, 500e-3 / 60, 0.5, 10, &st);
     std::printf("%s:\n", k == 0   ? "without the spread term, its card"
-                          : k == 1 ? "with the spread term, its card"
-                                   : "with the spread and shear terms, the first card");
+                         : k == 1 ? "with the spread term, its card"
+                                  : "with the spread and shear terms, the first card");
     spread_of[k] = LayerRadiusSpread(m, st.positions);
   }
   EXPECT_GT(spread_of[0], 2e-3) << "layers alternate without the spread term";
@@ -179,10 +181,11 @@ TEST(CalibrationFullBodyTest, PoissonGridRecoversTheRatioOfACurveTheBodyMade) {
   const Curve measured = compression_curve(m, o.rate, o.max_strain, o.points);
   const FitResult r = calibrate(spec, {measured}, o);
   ASSERT_EQ(r.error, "");
-  std::printf("curve made at Poisson %.4f: fitted Poisson %.4f, taper %.4f, stroke %.4f, "
-              "E_c %.6g Pa (made %.6g), full-body error %.3g %%\n",
-              want_nu, r.poisson, r.shape.taper, r.shape.stroke, r.shape.modulus, want.modulus,
-              100 * r.full_error);
+  std::printf(
+      "curve made at Poisson %.4f: fitted Poisson %.4f, taper %.4f, stroke %.4f, "
+      "E_c %.6g Pa (made %.6g), full-body error %.3g %%\n",
+      want_nu, r.poisson, r.shape.taper, r.shape.stroke, r.shape.modulus, want.modulus,
+      100 * r.full_error);
   EXPECT_NEAR(r.poisson, want_nu, 1e-6);
   EXPECT_NEAR(r.shape.modulus / want.modulus, 1, 1e-3);
   EXPECT_LT(r.full_error, 1e-4);
@@ -203,8 +206,7 @@ TEST(CalibrationFullBodyTest, ShearStiffPhantomFollowsEcoflexWithinTwoPercentWit
   BodySpec spec;
   ASSERT_EQ(io::load_scene(CONICA_SOURCE_DIR "/configs/phantom-cylinder.pbtxt", &spec), "");
   ensure_top_plate(&spec);
-  spec.groups[0].card.conical = {4.76372418e+09, 0.00144625498, 0.00667, 0.008, 0.01, 3,
-                                 6.125e-10};
+  spec.groups[0].card.conical = {4.76372418e+09, 0.00144625498, 0.00667, 0.008, 0.01, 3, 6.125e-10};
   spec.bulk_modulus = spec.spread_modulus = 257054.764;
   spec.shear_modulus = 14550.2892;
   EXPECT_NEAR(body_poisson(lattice_moduli(spec.groups), spec.bulk_modulus, spec.shear_modulus),

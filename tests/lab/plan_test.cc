@@ -2,8 +2,6 @@
 // within the budget (not the cheapest, not the most accurate), applies the cost scale, ignores
 // unstable rows and other experiments or laws, and says when no setting can. Then conica-lab plan
 // end to end on that table: its choice, the fragment it writes, and its errors for bad inputs.
-#include "lab/tradeoff.h"
-
 #include <gtest/gtest.h>
 
 #include <array>
@@ -11,6 +9,8 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+
+#include "lab/tradeoff.h"
 
 namespace conica::lab {
 namespace {
@@ -36,14 +36,14 @@ TradeoffRow Row(const std::string& integ, int substeps, double us, double err, b
 
 std::vector<TradeoffRow> Table() {
   return {
-      Row("symplectic", 1, 20, 0.12),                                    // 0 cheapest, 12 %
-      Row("symplectic", 2, 40, 0.06),                                    // 1
-      Row("symplectic", 4, 80, 0.03),                                    // 2
-      Row("implicit", 1, 300, 0.04),                                     // 3 dearer, less exact than 2
-      Row("explicit", 1, 10, 0.01, false),                               // 4 unstable
-      Row("symplectic", 8, 160, 0.015),                                  // 5
-      Row("symplectic", 1, 5, 0.001, true, "indentation"),               // 6 other experiment
-      Row("symplectic", 1, 5, 0.001, true, "compression", "hooke"),      // 7 other law
+      Row("symplectic", 1, 20, 0.12),                                // 0 cheapest, 12 %
+      Row("symplectic", 2, 40, 0.06),                                // 1
+      Row("symplectic", 4, 80, 0.03),                                // 2
+      Row("implicit", 1, 300, 0.04),                                 // 3 dearer, less exact than 2
+      Row("explicit", 1, 10, 0.01, false),                           // 4 unstable
+      Row("symplectic", 8, 160, 0.015),                              // 5
+      Row("symplectic", 1, 5, 0.001, true, "indentation"),           // 6 other experiment
+      Row("symplectic", 1, 5, 0.001, true, "compression", "hooke"),  // 7 other law
       Row("symplectic", 1, 900, 0.002, true, "compression", "conical", "5mm", 1521),  // 8
   };
 }
@@ -141,7 +141,7 @@ class PlanCliTest : public ::testing::Test {
 TEST_F(PlanCliTest, ChoosesAndWritesTheSolverBlock) {
   // A loose budget: the choice does not depend on the machine's speed within a factor of 10.
   const LabRun r = Lab("--scene " + scene_ + " --data " + data_ +
-                    " --tolerance 0.05 --budget-us 100000 --calibration-ticks 50 --out " + out_);
+                       " --tolerance 0.05 --budget-us 100000 --calibration-ticks 50 --out " + out_);
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("chosen: symplectic Euler, 4 substeps"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("the scene's own resolution"), std::string::npos) << r.out;
@@ -158,7 +158,7 @@ TEST_F(PlanCliTest, ChoosesAndWritesTheSolverBlock) {
 
 TEST_F(PlanCliTest, SaysWhenNoSettingCan) {
   const LabRun r = Lab("--scene " + scene_ + " --data " + data_ +
-                    " --tolerance 0.0001 --budget-us 100000 --calibration-ticks 20");
+                       " --tolerance 0.0001 --budget-us 100000 --calibration-ticks 20");
   EXPECT_EQ(r.status, 3) << r.out;
   EXPECT_NE(r.out.find("no setting meets 0.01 %"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("Closest:"), std::string::npos) << r.out;

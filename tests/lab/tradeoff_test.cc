@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-
 #include <cmath>
 
 #include "core/conical.h"
@@ -74,8 +73,8 @@ TEST(TradeoffTest, RmsErrorIsRobustToShortSpikes) {
 }
 
 TEST(TradeoffTest, ReferenceSettingHasZeroErrorAndRunsAreDeterministic) {
-  const Model m = Build(compression_body(PaperMaterial(), kBox, {3, 3, 2}),
-                        Integrator::kSymplecticEuler, 16);
+  const Model m =
+      Build(compression_body(PaperMaterial(), kBox, {3, 3, 2}), Integrator::kSymplecticEuler, 16);
   const Trace a = run_compression(m, 0.2, 0.15, 200);
   const Trace b = run_compression(m, 0.2, 0.15, 200);
   ASSERT_EQ(a.force.size(), 200u);
@@ -89,7 +88,8 @@ TEST(TradeoffTest, ReferenceSettingHasZeroErrorAndRunsAreDeterministic) {
 // Quasi-static compression of a linear lattice: the plate force lies between the uniaxial
 // (E A strain) and the confined (M A strain) bounds of the lattice's analytic moduli, because the
 // clamped base restrains the lateral expansion near it. E = 3780/639/28 K/L for the hex lattice
-// with all 28 springs (tests/lab/compression_test.cc), nu = 1/4, M = E (1 - nu) / ((1 + nu)(1 - 2 nu)).
+// with all 28 springs (tests/lab/compression_test.cc), nu = 1/4, M = E (1 - nu) / ((1 + nu)(1 - 2
+// nu)).
 TEST(TradeoffTest, CompressionForceBetweenUniaxialAndConfinedModulus) {
   const double K = 49.0196, L = 0.01, strain = 0.01;
   const BodySpec spec = hooke_twin(compression_body(PaperMaterial(), kBox, {3, 3, 2}));
@@ -155,13 +155,13 @@ TEST(TradeoffTest, ParetoFrontOfAHandMadeTable) {
     return r;
   };
   const std::vector<TradeoffRow> rows = {
-      row(10, 0.5),             // 0: front (fastest)
-      row(20, 0.6),             // 1: dominated by 0
-      row(30, 0.1),             // 2: front
-      row(5, 0.01, false),      // 3: unstable: never on the front
-      row(30, 0.2),             // 4: dominated by 2 (same time, larger error)
-      row(100, 0.01),           // 5: front (most accurate)
-      row(50, NAN),             // 6: no error: excluded
+      row(10, 0.5),         // 0: front (fastest)
+      row(20, 0.6),         // 1: dominated by 0
+      row(30, 0.1),         // 2: front
+      row(5, 0.01, false),  // 3: unstable: never on the front
+      row(30, 0.2),         // 4: dominated by 2 (same time, larger error)
+      row(100, 0.01),       // 5: front (most accurate)
+      row(50, NAN),         // 6: no error: excluded
   };
   EXPECT_EQ(pareto_front(rows), (std::vector<int>{0, 2, 5}));
   // With the RMS error known the front uses it: row 1's spikes (max 0.6) hide an RMS of 0.05.
@@ -177,9 +177,9 @@ TEST(TradeoffTest, PrincipalAxisRegistrationRecoversARigidMapAndScale) {
   for (int i = 0; i < 6; ++i)
     for (int j = 0; j < 4; ++j)
       for (int k = 0; k < 3; ++k)
-        target.emplace_back(0.03 * i + 0.002 * j * j, 0.02 * j + 0.001 * i, 0.01 * k + 0.003 * i * i * 0.1);
-  const Eigen::Matrix3d R =
-      Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+        target.emplace_back(0.03 * i + 0.002 * j * j, 0.02 * j + 0.001 * i,
+                            0.01 * k + 0.003 * i * i * 0.1);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
   std::vector<Vec3> moved;
   for (const Vec3& x : target) moved.push_back(Vec3(5, -2, 1) + 2.5 * R * x);  // other units
   const double d = register_principal_axes(&moved, target);

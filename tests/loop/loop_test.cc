@@ -2,8 +2,6 @@
 // sleeps or the test advances it) and a MemoryTransport. Every expectation is computed
 // independently: deadlines from the period, forces and positions by running the core on a twin
 // model, missed ticks from the overrun rule.
-#include "loop/fixed_rate_loop.h"
-
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -18,6 +16,7 @@
 #include "core/body.h"
 #include "core/step.h"
 #include "loop/clock.h"
+#include "loop/fixed_rate_loop.h"
 #include "loop/memory_transport.h"
 #include "loop/scene.h"
 
@@ -41,7 +40,7 @@ namespace {
 constexpr double kRate = 1000;       // Hz
 constexpr TimeNs kPeriod = 1000000;  // ns, 1 / kRate
 constexpr TimeNs kStart = 5'000'000'000;
-constexpr double kRadius = 3e-3;     // m
+constexpr double kRadius = 3e-3;  // m
 
 // A w x w x h (m) lattice of cells^3-ish hexahedra, bottom clamped, one probe, tissue-like card.
 BodySpec Lattice(const Vec3& size, const std::array<int, 3>& cells) {
@@ -61,13 +60,16 @@ BodySpec Lattice(const Vec3& size, const std::array<int, 3>& cells) {
   b.probes.push_back(ProbeSpec{kRadius, 0});
   return b;
 }
-BodySpec Small() { return Lattice(Vec3(0.02, 0.02, 0.01), {4, 4, 2}); }   // 75 nodes
-BodySpec Large() { return Lattice(Vec3(0.03, 0.02, 0.01), {6, 4, 2}); }   // 105 nodes
+BodySpec Small() { return Lattice(Vec3(0.02, 0.02, 0.01), {4, 4, 2}); }  // 75 nodes
+BodySpec Large() { return Lattice(Vec3(0.03, 0.02, 0.01), {6, 4, 2}); }  // 105 nodes
 
 std::string LoadByName(const std::string& name, BodySpec* spec) {
-  if (name == "small") *spec = Small();
-  else if (name == "large") *spec = Large();
-  else return "no scene called " + name;
+  if (name == "small")
+    *spec = Small();
+  else if (name == "large")
+    *spec = Large();
+  else
+    return "no scene called " + name;
   return {};
 }
 
@@ -152,8 +154,8 @@ TEST_F(LoopTest, TicksAtTheFixedRateOnAbsoluteDeadlines) {
   const auto frames = ForceFrames();
   ASSERT_EQ(frames.size(), 50u);
   for (std::size_t k = 0; k < frames.size(); ++k) {
-    EXPECT_EQ(frames[k]->at_ns, At(k + 1.0)) << k;  // tick k+1 runs at its deadline exactly
-    EXPECT_EQ(frames[k]->tick, k + 1);               // one core step per tick
+    EXPECT_EQ(frames[k]->at_ns, At(k + 1.0)) << k;         // tick k+1 runs at its deadline exactly
+    EXPECT_EQ(frames[k]->tick, k + 1);                     // one core step per tick
     EXPECT_NEAR(frames[k]->time, (k + 1) / kRate, 1e-12);  // s, summed dt
   }
   int positions = 0;
@@ -240,8 +242,8 @@ TEST_F(LoopTest, CommandsAreAppliedBetweenTicks) {
   Twin twin(Small());
   twin.steps(5);
   twin.model.options.gravity.z() = -9.81;
-  twin.steps(7);   // ticks 6..12
-  twin.steps(5);   // ticks 16..20
+  twin.steps(7);  // ticks 6..12
+  twin.steps(5);  // ticks 16..20
   const auto frames = ForceFrames();
   ASSERT_EQ(frames.size(), 20u);
   for (int k = 12; k < 15; ++k) EXPECT_EQ(frames[k]->tick, 12u) << "paused at tick " << k + 1;

@@ -105,7 +105,8 @@ TEST_F(CurveTest, KeyFilesRoundTripAndSecretsStayPrivate) {
                                   << known_.secret_key << "\n";
   EXPECT_NE(read_key_file((dir_ / "bad.key").string(), &k).find("do not match"), std::string::npos);
   std::ofstream(dir_ / "short.pub") << "public abc\n";
-  EXPECT_NE(read_key_file((dir_ / "short.pub").string(), &k).find("short.pub:1"), std::string::npos);
+  EXPECT_NE(read_key_file((dir_ / "short.pub").string(), &k).find("short.pub:1"),
+            std::string::npos);
   std::vector<std::string> keys;
   ASSERT_EQ(read_client_keys((dir_ / "clients").string(), &keys), "");
   EXPECT_EQ(keys, std::vector<std::string>{known_.public_key});
@@ -169,7 +170,11 @@ TEST_F(CurveTest, BadKeysAreRefusedAtStart) {
   BodySpec spec;
   ASSERT_EQ(builtin_scene("cube", 1e-3, &spec), "");
   opt.refuse_slow_scene = false;
-  Server s2(ctx_, [&] { auto o = opt; o.curve_client_keys = {"not a key"}; return o; }());
+  Server s2(ctx_, [&] {
+    auto o = opt;
+    o.curve_client_keys = {"not a key"};
+    return o;
+  }());
   ASSERT_EQ(s.load(spec), "");
   EXPECT_NE(s.start(), "");
   ASSERT_EQ(s2.load(spec), "");

@@ -195,7 +195,8 @@ TEST_F(FaultTest, ClientsKilledMidStream) {
   // In-process clients closed mid-stream with replies in flight.
   for (int k = 0; k < 50; ++k) {
     zmq::socket_t s = Dealer(ctx_, ep);
-    for (int j = 0; j < 20; ++j) (void)s.send(zmq::buffer(ProbeBytes(j)), zmq::send_flags::dontwait);
+    for (int j = 0; j < 20; ++j)
+      (void)s.send(zmq::buffer(ProbeBytes(j)), zmq::send_flags::dontwait);
   }
   ExpectServed();
   ExpectTicking();
@@ -261,16 +262,17 @@ TEST_F(FaultTest, ProbeFloodAtAbout100kHzLeavesOthersServed) {
   flooder.join();
   const LoopStatsData st = server_->stats();
   EXPECT_GE(ticks_during, 30u) << "a flooding client held off the tick";  // unbounded drain: 8
-  std::printf("flood: sent %llu in 2 s, server received %llu probes, %d of %d others answered, "
-              "%llu ticks during the flood, %llu missed ticks of %llu\n",
-              static_cast<unsigned long long>(sent.load()),
-              static_cast<unsigned long long>(st.probes_received), answered, asked,
-              static_cast<unsigned long long>(ticks_during),
-              static_cast<unsigned long long>(st.missed_ticks),
-              static_cast<unsigned long long>(st.ticks));
+  std::printf(
+      "flood: sent %llu in 2 s, server received %llu probes, %d of %d others answered, "
+      "%llu ticks during the flood, %llu missed ticks of %llu\n",
+      static_cast<unsigned long long>(sent.load()),
+      static_cast<unsigned long long>(st.probes_received), answered, asked,
+      static_cast<unsigned long long>(ticks_during),
+      static_cast<unsigned long long>(st.missed_ticks), static_cast<unsigned long long>(st.ticks));
   EXPECT_GT(sent.load(), 50000u) << "the flood did not reach 25 kHz";
   EXPECT_GT(st.probes_received, 5000u) << "the flood did not reach the server";
-  EXPECT_GE(answered, asked * 9 / 10) << answered << " of " << asked << " answered during the flood";
+  EXPECT_GE(answered, asked * 9 / 10)
+      << answered << " of " << asked << " answered during the flood";
   EXPECT_GT(asked, 5);
   ExpectServed();
   ExpectTicking();
@@ -347,7 +349,7 @@ TEST_F(FaultTest, BlowingUpSceneIsRolledBackAndServingGoesOn) {
   ASSERT_EQ(builtin_scene("cube", 1e-3, &spec), "");
   for (auto& g : spec.groups) {
     g.card.law = LawKind::kHooke;
-    g.card.hooke_k = 1e9;  // N/m
+    g.card.hooke_k = 1e9;        // N/m
     g.card.hooke_length = 0.01;  // m
   }
   Start(StartOptions(), &spec);

@@ -4,6 +4,7 @@
 // position. Deadlines are absolute (CLOCK_MONOTONIC); an overrun skips ticks and counts them.
 #include <sys/prctl.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <csignal>
 #include <cstdio>
@@ -11,8 +12,6 @@
 #include <iostream>
 #include <memory>
 #include <string>
-
-#include <CLI/CLI.hpp>
 
 #include "client/connection.h"
 #include "haptics/device.h"
@@ -33,7 +32,8 @@ class ZmqLink : public ForceLink {
           const CurveClient& curve)
       : conn_(ctx, endpoint, 11, curve), probe_(probe), radius_(radius) {}
   void send(double, const Vec3& p) override {
-    if (!conn_.send(probe_, seq_++, static_cast<std::uint64_t>(now_ns()), p, radius_)) ++send_failures;
+    if (!conn_.send(probe_, seq_++, static_cast<std::uint64_t>(now_ns()), p, radius_))
+      ++send_failures;
   }
   bool poll(double t, LocalModel* out) override {
     for (;;) {
@@ -82,7 +82,8 @@ int main(int argc, char** argv) {
   RendererOptions ro;
   app.add_flag("--list-devices", list, "list device backends and how to enable the missing ones");
   app.add_option("--device", device_name, "virtual, openhaptics, dhd or nifalcon");
-  app.add_option("--profile", profile_name, "touch, omni, falcon or omega (force and stiffness limits)");
+  app.add_option("--profile", profile_name,
+                 "touch, omni, falcon or omega (force and stiffness limits)");
   app.add_option("--endpoint", endpoint, "probe ROUTER of the server");
   app.add_option("--probe", probe, "probe index in the scene");
   app.add_option("--radius", radius, "m, probe radius (0: the scene's)");
@@ -105,23 +106,25 @@ int main(int argc, char** argv) {
   app.add_option("--offline-wall", wall_k,
                  "N/m: no server; a wall through --offset, normal +z, answers 2 ticks late");
   app.add_option("--log", log_path, "CSV per tick: t,x,y,z,px,py,pz,fx,fy,fz");
-  app.add_option("--curve-server-pub", curve_server_pub,
-                 "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
+  app.add_option(
+      "--curve-server-pub", curve_server_pub,
+      "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
   app.add_option("--curve-key", curve_key,
-                 "CURVE: this client's key pair file (its .key from --generate-keys; the server lists its .pub)");
+                 "CURVE: this client's key pair file (its .key from --generate-keys; the server "
+                 "lists its .pub)");
   CLI11_PARSE(app, argc, argv);
 
   if (list) {
     std::printf("device backends:\n");
     for (const auto& b : device_backends()) {
-      std::printf("  %-12s %s  %s [%s]\n", b.name.c_str(), b.available ? "available  " : "not built  ",
-                  b.devices.c_str(), b.units.c_str());
+      std::printf("  %-12s %s  %s [%s]\n", b.name.c_str(),
+                  b.available ? "available  " : "not built  ", b.devices.c_str(), b.units.c_str());
       if (!b.available) std::printf("               to enable: %s\n", b.enable.c_str());
     }
     std::printf("profiles:\n");
     for (const auto& p : device_profiles())
-      std::printf("  %-8s max force %.1f N, max stiffness %.0f N/m, slew %.0f N/s\n", p.name.c_str(),
-                  p.max_force, p.max_stiffness, p.max_force_rate);
+      std::printf("  %-8s max force %.1f N, max stiffness %.0f N/m, slew %.0f N/s\n",
+                  p.name.c_str(), p.max_force, p.max_stiffness, p.max_force_rate);
     return 0;
   }
   auto fail = [](const std::string& m) {
@@ -161,7 +164,8 @@ int main(int argc, char** argv) {
   }
 
   CurveClient curve;
-  if (std::string e = load_curve_client(curve_server_pub, curve_key, &curve); !e.empty()) return fail(e);
+  if (std::string e = load_curve_client(curve_server_pub, curve_key, &curve); !e.empty())
+    return fail(e);
 
   zmq::context_t ctx(1);
   std::unique_ptr<ForceLink> link;
@@ -211,23 +215,27 @@ int main(int argc, char** argv) {
   device->close();
 
   const RendererStats& st = renderer.stats();
-  std::printf("conica-haptic: %s device, %s profile, %lld ticks, %lld missed\n", device->name().c_str(),
-              prof->name.c_str(), static_cast<long long>(done), static_cast<long long>(missed));
+  std::printf("conica-haptic: %s device, %s profile, %lld ticks, %lld missed\n",
+              device->name().c_str(), prof->name.c_str(), static_cast<long long>(done),
+              static_cast<long long>(missed));
   std::printf("  replies %llu (rejected %llu), stale ticks %llu, peak force %.3f N\n",
               static_cast<unsigned long long>(st.replies),
               static_cast<unsigned long long>(st.rejected_replies),
               static_cast<unsigned long long>(st.stale_ticks), peak);
-  std::printf("  clamped: force %llu ticks, rate %llu ticks, stiffness %llu replies; passivity "
-              "controller active %llu ticks\n",
-              static_cast<unsigned long long>(st.force_clamped),
-              static_cast<unsigned long long>(st.rate_clamped),
-              static_cast<unsigned long long>(st.stiffness_clamped),
-              static_cast<unsigned long long>(st.pc_active_ticks));
+  std::printf(
+      "  clamped: force %llu ticks, rate %llu ticks, stiffness %llu replies; passivity "
+      "controller active %llu ticks\n",
+      static_cast<unsigned long long>(st.force_clamped),
+      static_cast<unsigned long long>(st.rate_clamped),
+      static_cast<unsigned long long>(st.stiffness_clamped),
+      static_cast<unsigned long long>(st.pc_active_ticks));
   std::printf("  work done on the device by the rendered force: %.6f J", st.device_work);
   if (virt) std::printf(" (virtual device's own account: %.6f J)", virt->work_received());
   std::printf("\n");
-  if (zl && zl->errors) std::printf("  server errors %llu, last: %s\n",
-                                    static_cast<unsigned long long>(zl->errors), zl->last_error.c_str());
-  if (zl && zl->replies == 0) return fail("no replies from " + endpoint + "; is conica-server running?");
+  if (zl && zl->errors)
+    std::printf("  server errors %llu, last: %s\n", static_cast<unsigned long long>(zl->errors),
+                zl->last_error.c_str());
+  if (zl && zl->replies == 0)
+    return fail("no replies from " + endpoint + "; is conica-server running?");
   return 0;
 }

@@ -16,6 +16,7 @@
 #include <sched.h>
 #include <sys/prctl.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -24,11 +25,9 @@
 #include <string>
 #include <thread>
 
-#include <CLI/CLI.hpp>
-
 #include "client/connection.h"
-#include "net/io_threads.h"
 #include "common/latency_stats.h"
+#include "net/io_threads.h"
 
 using namespace conica::client;
 
@@ -57,17 +56,21 @@ int main(int argc, char** argv) {
   app.add_option("--label", label, "name of this run in the CSV and plots (e.g. the scene)");
   app.add_option("--plot", plot, "PNG: latency CDF (needs --csv; /usr/bin/python3 + matplotlib)");
   app.add_option("--plot-script", plot_script, "plotting script");
-  app.add_option("--spin-us", spin_us, "us before each send spent spinning on the socket instead of sleeping")
+  app.add_option("--spin-us", spin_us,
+                 "us before each send spent spinning on the socket instead of sleeping")
       ->check(CLI::Range(0.0, 1e6));
   app.add_option("--busy-poll-us", busy_poll_us,
                  "us after each send spent polling for its reply without sleeping")
       ->check(CLI::Range(0.0, 1e6));
   app.add_option("--io-threads", io_threads, "ZeroMQ I/O threads")->check(CLI::Range(1, 16));
-  app.add_flag("--realtime", realtime, "SCHED_FIFO (priority 70) for this thread and the ZeroMQ I/O threads");
-  app.add_option("--curve-server-pub", curve_server_pub,
-                 "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
+  app.add_flag("--realtime", realtime,
+               "SCHED_FIFO (priority 70) for this thread and the ZeroMQ I/O threads");
+  app.add_option(
+      "--curve-server-pub", curve_server_pub,
+      "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
   app.add_option("--curve-key", curve_key,
-                 "CURVE: this client's key pair file (its .key from --generate-keys; the server lists its .pub)");
+                 "CURVE: this client's key pair file (its .key from --generate-keys; the server "
+                 "lists its .pub)");
   CLI11_PARSE(app, argc, argv);
 
   const auto pos = parse_vec3(position);
@@ -99,10 +102,11 @@ int main(int argc, char** argv) {
   }
   conica::v1::ControlReply before, after;
   std::string error;
-  const bool have_stats = !control.empty() &&
-      control_request(context, control, conica::v1::ControlRequest::GET_STATS, 1000, &before, &error,
-                      curve);
-  if (!control.empty() && !have_stats) std::cerr << "conica-latency: no server statistics: " << error << "\n";
+  const bool have_stats =
+      !control.empty() && control_request(context, control, conica::v1::ControlRequest::GET_STATS,
+                                          1000, &before, &error, curve);
+  if (!control.empty() && !have_stats)
+    std::cerr << "conica-latency: no server statistics: " << error << "\n";
 
   ProbeConnection conn(context, endpoint, client_id, curve);
   const auto n = static_cast<std::size_t>(rate_hz * seconds + 0.5);
@@ -130,8 +134,10 @@ int main(int argc, char** argv) {
           const double sched = static_cast<double>(rec.scheduled_ns(f.sequence));
           to_server.push_back((static_cast<double>(f.server_recv_time_ns) - sched) * 1e-3);
           in_server.push_back((static_cast<double>(f.server_reply_time_ns) -
-                               static_cast<double>(f.server_recv_time_ns)) * 1e-3);
-          to_client.push_back((static_cast<double>(t) - static_cast<double>(f.server_reply_time_ns)) * 1e-3);
+                               static_cast<double>(f.server_recv_time_ns)) *
+                              1e-3);
+          to_client.push_back(
+              (static_cast<double>(t) - static_cast<double>(f.server_reply_time_ns)) * 1e-3);
         }
       } else if (k == ReplyKind::kError || k == ReplyKind::kMalformed) {
         ++errors;
@@ -159,7 +165,8 @@ int main(int argc, char** argv) {
     const std::int64_t late = now_ns() - due;
     if (late > worst_send_delay_ns) worst_send_delay_ns = late;
     rec.on_sent(i, due);
-    if (!conn.send(static_cast<std::uint32_t>(probe), i, static_cast<std::uint64_t>(due), *pos, radius))
+    if (!conn.send(static_cast<std::uint32_t>(probe), i, static_cast<std::uint64_t>(due), *pos,
+                   radius))
       ++send_failures;
     drain(0);
     if (busy_ns > 0) {
@@ -170,25 +177,29 @@ int main(int argc, char** argv) {
   const std::int64_t end = now_ns() + static_cast<std::int64_t>(drain_s * 1e9);
   while (rec.received() < rec.sent() && now_ns() < end) drain(end);
 
-  const bool have_after = have_stats &&
-      control_request(context, control, conica::v1::ControlRequest::GET_STATS, 1000, &after, &error,
-                      curve);
+  const bool have_after =
+      have_stats && control_request(context, control, conica::v1::ControlRequest::GET_STATS, 1000,
+                                    &after, &error, curve);
 
   const LatencySummary s = summarize(rec.latencies_us());
   std::printf("conica-latency: %s, %.0f Hz for %.1f s, probe %d at %s\n", endpoint.c_str(), rate_hz,
               seconds, probe, position.c_str());
-  std::printf("round trip from scheduled send (us): p50 %.1f  p90 %.1f  p99 %.1f  p99.9 %.1f  "
-              "max %.1f  mean %.1f\n",
-              s.p50, s.p90, s.p99, s.p999, s.max, s.mean);
-  std::printf("sent %zu, received %zu, lost %zu, duplicates %zu, unknown %zu, server errors %zu, "
-              "send failures %zu, worst send delay %.1f us\n",
-              rec.sent(), rec.received(), rec.lost(), rec.duplicates(), rec.unknown(), errors,
-              send_failures, worst_send_delay_ns * 1e-3);
+  std::printf(
+      "round trip from scheduled send (us): p50 %.1f  p90 %.1f  p99 %.1f  p99.9 %.1f  "
+      "max %.1f  mean %.1f\n",
+      s.p50, s.p90, s.p99, s.p999, s.max, s.mean);
+  std::printf(
+      "sent %zu, received %zu, lost %zu, duplicates %zu, unknown %zu, server errors %zu, "
+      "send failures %zu, worst send delay %.1f us\n",
+      rec.sent(), rec.received(), rec.lost(), rec.duplicates(), rec.unknown(), errors,
+      send_failures, worst_send_delay_ns * 1e-3);
   if (!to_server.empty()) {
-    const LatencySummary a = summarize(to_server), b = summarize(in_server), c = summarize(to_client);
-    std::printf("legs p50 / p99 (us): scheduled -> server recv %.1f / %.1f, in server %.1f / %.1f, "
-                "server reply -> client read %.1f / %.1f\n",
-                a.p50, a.p99, b.p50, b.p99, c.p50, c.p99);
+    const LatencySummary a = summarize(to_server), b = summarize(in_server),
+                         c = summarize(to_client);
+    std::printf(
+        "legs p50 / p99 (us): scheduled -> server recv %.1f / %.1f, in server %.1f / %.1f, "
+        "server reply -> client read %.1f / %.1f\n",
+        a.p50, a.p99, b.p50, b.p99, c.p50, c.p99);
   }
   if (!last_error.empty()) std::printf("last server error: %s\n", last_error.c_str());
   std::uint32_t nodes = 0;
@@ -209,8 +220,9 @@ int main(int argc, char** argv) {
       return 1;
     }
     out << "# conica-latency endpoint=" << endpoint << " rate_hz=" << rate_hz
-        << " seconds=" << seconds << " num_nodes=" << nodes << " label=" << (label.empty() ? "run" : label)
-        << " lost=" << rec.lost() << " sent=" << rec.sent() << "\n";
+        << " seconds=" << seconds << " num_nodes=" << nodes
+        << " label=" << (label.empty() ? "run" : label) << " lost=" << rec.lost()
+        << " sent=" << rec.sent() << "\n";
     out << "seq,scheduled_us,latency_us\n";
     char line[96];
     for (std::size_t i = 0; i < rec.sent(); ++i) {
@@ -220,8 +232,10 @@ int main(int argc, char** argv) {
     }
   }
   if (!plot.empty()) {
-    const std::string cmd = "/usr/bin/python3 '" + plot_script + "' --out '" + plot + "' '" + csv + "'";
-    if (std::system(cmd.c_str()) != 0) std::cerr << "conica-latency: plotting failed: " << cmd << "\n";
+    const std::string cmd =
+        "/usr/bin/python3 '" + plot_script + "' --out '" + plot + "' '" + csv + "'";
+    if (std::system(cmd.c_str()) != 0)
+      std::cerr << "conica-latency: plotting failed: " << cmd << "\n";
   }
   if (rec.received() == 0)
     std::fprintf(stderr, "conica-latency: no replies from %s; is conica-server running there?\n",

@@ -4,6 +4,7 @@
 // By default each probe has one request outstanding and the script clock advances one sample
 // per reply (as fast as the server answers); --realtime sends every sample at its script time
 // (absolute deadlines on CLOCK_MONOTONIC) and records whatever comes back.
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
@@ -13,8 +14,6 @@
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 #include "client/connection.h"
 #include "common/latency_stats.h"
@@ -36,9 +35,9 @@ struct ProbeRun {
 };
 
 struct Request {
-  int run = -1;           // index into runs
-  double t = 0;           // script time, s
-  Vec3 position;          // m
+  int run = -1;   // index into runs
+  double t = 0;   // script time, s
+  Vec3 position;  // m
   std::int64_t sent_ns = 0;
   bool answered = false;
 };
@@ -78,10 +77,12 @@ int main(int argc, char** argv) {
   app.add_option("--timeout", timeout_s, "s to wait for a reply before giving up");
   app.add_option("-o,--out", out_path, "CSV output file ('-': stdout)");
   app.add_flag("--realtime", realtime, "pace by the script clock instead of as fast as possible");
-  app.add_option("--curve-server-pub", curve_server_pub,
-                 "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
+  app.add_option(
+      "--curve-server-pub", curve_server_pub,
+      "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
   app.add_option("--curve-key", curve_key,
-                 "CURVE: this client's key pair file (its .key from --generate-keys; the server lists its .pub)");
+                 "CURVE: this client's key pair file (its .key from --generate-keys; the server "
+                 "lists its .pub)");
   CLI11_PARSE(app, argc, argv);
 
   auto fail = [](const std::string& m) {
@@ -101,7 +102,8 @@ int main(int argc, char** argv) {
   p.dt = 1.0 / rate_hz;
 
   CurveClient curve;
-  if (std::string e = load_curve_client(curve_server_pub, curve_key, &curve); !e.empty()) return fail(e);
+  if (std::string e = load_curve_client(curve_server_pub, curve_key, &curve); !e.empty())
+    return fail(e);
 
   std::vector<ProbeRun> runs;
   std::string error;
@@ -151,8 +153,8 @@ int main(int argc, char** argv) {
   auto send = [&](int r, const Sample& s, std::int64_t stamp_ns) {
     const std::uint64_t seq = requests.size();
     requests.push_back({r, s.t, s.position, stamp_ns, false});
-    if (!conn.send(static_cast<std::uint32_t>(runs[r].id), seq, static_cast<std::uint64_t>(stamp_ns),
-                   s.position, radius))
+    if (!conn.send(static_cast<std::uint32_t>(runs[r].id), seq,
+                   static_cast<std::uint64_t>(stamp_ns), s.position, radius))
       return false;
     ++runs[r].outstanding;
     return true;
@@ -204,7 +206,8 @@ int main(int argc, char** argv) {
       for (std::size_t r = 0; r < runs.size(); ++r) {
         ProbeRun& run = runs[r];
         if (run.have_next && run.outstanding == 0) {
-          if (!send(static_cast<int>(r), run.next, now_ns())) return fail("cannot queue a probe update");
+          if (!send(static_cast<int>(r), run.next, now_ns()))
+            return fail("cannot queue a probe update");
           run.have_next = false;
         }
       }
@@ -213,7 +216,8 @@ int main(int argc, char** argv) {
       // Earliest sample due; replies are handled while waiting for it.
       int due = -1;
       for (std::size_t r = 0; r < runs.size(); ++r)
-        if (runs[r].have_next && (due < 0 || runs[r].next.t < runs[due].next.t)) due = static_cast<int>(r);
+        if (runs[r].have_next && (due < 0 || runs[r].next.t < runs[due].next.t))
+          due = static_cast<int>(r);
       if (due >= 0) {
         const std::int64_t at_ns = t0 + static_cast<std::int64_t>(runs[due].next.t * 1e9);
         while (now_ns() < at_ns)

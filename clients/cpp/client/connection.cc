@@ -36,8 +36,8 @@ void encode_probe(std::uint32_t client_id, std::uint32_t probe_id, std::uint64_t
   p->set_radius(radius);
 }
 
-ReplyKind decode_reply(const void* data, std::size_t size, v1::ServerMessage* m,
-                       ForceSample* f, std::string* error) {
+ReplyKind decode_reply(const void* data, std::size_t size, v1::ServerMessage* m, ForceSample* f,
+                       std::string* error) {
   if (!m->ParseFromArray(data, static_cast<int>(size))) {
     *error = "malformed server message (" + std::to_string(size) + " bytes)";
     return ReplyKind::kMalformed;
@@ -71,18 +71,21 @@ std::string load_curve_client(const std::string& server_pub_file, const std::str
                               CurveClient* out) {
   *out = {};
   if (server_pub_file.empty() && key_file.empty()) return {};
-  if (server_pub_file.empty()) return "--curve-key needs --curve-server-pub (the server's .pub file)";
+  if (server_pub_file.empty())
+    return "--curve-key needs --curve-server-pub (the server's .pub file)";
   if (key_file.empty()) return "--curve-server-pub needs --curve-key (this client's .key file)";
   if (!net::curve_available()) return "CURVE requested but this libzmq has no CURVE support";
   net::CurveKeyPair server, mine;
   if (std::string e = net::read_key_file(server_pub_file, &server); !e.empty())
     return e + " (--curve-server-pub: the server's .pub file)";
   if (!server.secret_key.empty())
-    return server_pub_file + ": holds the server's secret key; give the client the server's .pub file";
+    return server_pub_file +
+           ": holds the server's secret key; give the client the server's .pub file";
   if (std::string e = net::read_key_file(key_file, &mine); !e.empty())
     return e + " (--curve-key: this client's .key file)";
   if (mine.secret_key.empty())
-    return key_file + ": no secret key; give this client's .key file (public and secret), not its .pub";
+    return key_file +
+           ": no secret key; give this client's .key file (public and secret), not its .pub";
   out->server_public = server.public_key;
   out->keys = mine;
   return {};
@@ -121,8 +124,8 @@ bool ProbeConnection::send(std::uint32_t probe_id, std::uint64_t sequence,
   return socket_.send(zmq::buffer(buffer_), zmq::send_flags::dontwait).has_value();
 }
 
-ReplyKind ProbeConnection::receive(std::int64_t deadline_ns, ForceSample* force,
-                                   std::string* error, bool* got_message) {
+ReplyKind ProbeConnection::receive(std::int64_t deadline_ns, ForceSample* force, std::string* error,
+                                   bool* got_message) {
   *got_message = false;
   zmq::message_t msg;
   if (!socket_.recv(msg, zmq::recv_flags::dontwait)) {

@@ -6,7 +6,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
-
 #include <zmq.hpp>
 
 #include "common/types.h"
@@ -28,11 +27,11 @@ struct ForceSample {
   std::uint64_t sequence = 0;
   std::uint64_t client_send_time_ns = 0, server_recv_time_ns = 0, server_reply_time_ns = 0;
   std::uint64_t tick = 0;
-  Vec3 force = Vec3::Zero();          // N on the probe
-  Mat3 stiffness = Mat3::Zero();      // N/m, d force / d position
-  bool has_stiffness = false;         // false when the reply carried no 9-value matrix
+  Vec3 force = Vec3::Zero();      // N on the probe
+  Mat3 stiffness = Mat3::Zero();  // N/m, d force / d position
+  bool has_stiffness = false;     // false when the reply carried no 9-value matrix
   bool contact = false;
-  Vec3 position = Vec3::Zero();       // m, where the force was computed
+  Vec3 position = Vec3::Zero();  // m, where the force was computed
 };
 
 // ClientMessage{probe}. radius 0 keeps the scene's.

@@ -32,8 +32,9 @@ LatencySummary summarize(std::vector<double> samples_us) {
 
 std::string summary_line(const LatencySummary& s, std::size_t lost, std::size_t sent) {
   char buf[200];
-  std::snprintf(buf, sizeof buf, "p50_us=%.1f p99_us=%.1f p999_us=%.1f max_us=%.1f lost=%zu sent=%zu",
-                s.p50, s.p99, s.p999, s.max, lost, sent);
+  std::snprintf(buf, sizeof buf,
+                "p50_us=%.1f p99_us=%.1f p999_us=%.1f max_us=%.1f lost=%zu sent=%zu", s.p50, s.p99,
+                s.p999, s.max, lost, sent);
   return buf;
 }
 

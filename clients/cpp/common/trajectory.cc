@@ -1,11 +1,11 @@
 #include "common/trajectory.h"
 
-#include "io/probe_script.h"
-
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
+
+#include "io/probe_script.h"
 
 namespace conica::client {
 

@@ -30,10 +30,10 @@
 namespace conica::client {
 
 struct TrajectoryRow {
-  double t = 0;        // s
-  int probe = 0;       // probe index in the scene
-  Vec3 position;       // m
-  int line = 0;        // 1-based line in the file
+  double t = 0;   // s
+  int probe = 0;  // probe index in the scene
+  Vec3 position;  // m
+  int line = 0;   // 1-based line in the file
 };
 
 // Parses CSV rows; on error returns false and sets `error` to "name:line:column: what".
@@ -43,14 +43,14 @@ bool load_trajectory(const std::string& path, std::vector<TrajectoryRow>* rows, 
 
 // The latest reply a source may react to.
 struct Feedback {
-  double t = 0;        // s, script time of the sample it answers
+  double t = 0;               // s, script time of the sample it answers
   Vec3 force = Vec3::Zero();  // N on the probe
   bool contact = false;
 };
 
 struct Sample {
-  double t = 0;        // s, script time
-  Vec3 position;       // m
+  double t = 0;   // s, script time
+  Vec3 position;  // m
 };
 
 // Produces one probe's samples in order. `last` is the latest reply for this probe (null before

@@ -1,10 +1,9 @@
 // Small shared vocabulary of the clients: SI vectors and "x,y,z" / "-z" parsing for command lines.
 #pragma once
 
+#include <Eigen/Core>
 #include <optional>
 #include <string>
-
-#include <Eigen/Core>
 
 namespace conica::client {
 

@@ -136,8 +136,8 @@ class FalconDevice : public Device {
       return false;
     }
     if (!dev_.isFirmwareLoaded() && !dev_.getFalconFirmware()->loadFirmware(
-            true, NOVINT_FALCON_NVENT_FIRMWARE_SIZE,
-            const_cast<uint8_t*>(NOVINT_FALCON_NVENT_FIRMWARE))) {
+                                        true, NOVINT_FALCON_NVENT_FIRMWARE_SIZE,
+                                        const_cast<uint8_t*>(NOVINT_FALCON_NVENT_FIRMWARE))) {
       *error = "libnifalcon: cannot load the firmware";
       return false;
     }
@@ -148,7 +148,8 @@ class FalconDevice : public Device {
     if (!dev_.runIOLoop()) return false;
     const auto p = dev_.getPosition();
     const Vec3 x = to_scene_position(frame_, Vec3(p[0], p[1], p[2]));
-    out->velocity = (t > t_prev_ && have_prev_) ? Vec3((x - x_prev_) / (t - t_prev_)) : Vec3::Zero();
+    out->velocity =
+        (t > t_prev_ && have_prev_) ? Vec3((x - x_prev_) / (t - t_prev_)) : Vec3::Zero();
     out->position = x;
     x_prev_ = x;
     t_prev_ = t;

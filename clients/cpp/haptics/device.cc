@@ -20,7 +20,8 @@ bool VirtualDevice::read(double t, DeviceSample* out) {
       const Vec3 hp = o_.hand(ts);
       const Vec3 hv = (o_.hand(ts + e) - o_.hand(ts - e)) / (2 * e);
       const Vec3 a = (o_.hand_stiffness * (hp - x_) + o_.hand_damping * (hv - v_) -
-                      o_.friction * v_ + force_) / o_.mass;
+                      o_.friction * v_ + force_) /
+                     o_.mass;
       v_ += h * a;
       const Vec3 dx = h * v_;
       work_ += force_.dot(dx);

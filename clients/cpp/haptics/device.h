@@ -36,11 +36,11 @@ class Device {
 // integrated with semi-implicit Euler in `substeps` per servo period; F is held between writes.
 // It keeps an exact account of the work F does on the tip: sum F . dx over substeps.
 struct VirtualDeviceOptions {
-  double mass = 0.1;             // kg
-  double hand_stiffness = 300;   // N/m
-  double hand_damping = 2;       // N s/m
-  double friction = 0.01;        // N s/m, device viscous friction
-  double dt = 1e-3;              // s, servo period (reads are expected every dt)
+  double mass = 0.1;            // kg
+  double hand_stiffness = 300;  // N/m
+  double hand_damping = 2;      // N s/m
+  double friction = 0.01;       // N s/m, device viscous friction
+  double dt = 1e-3;             // s, servo period (reads are expected every dt)
   int substeps = 20;
   // Hand target h(t) (m, scene frame); its velocity is taken by central difference.
   std::function<Vec3(double)> hand;
@@ -72,9 +72,9 @@ std::function<Vec3(double)> hand_press(const Vec3& start, const Vec3& axis, doub
 struct BackendInfo {
   std::string name;
   bool available = false;
-  std::string devices;   // what it drives
-  std::string units;     // native units / frame
-  std::string enable;    // how to build it in when unavailable
+  std::string devices;  // what it drives
+  std::string units;    // native units / frame
+  std::string enable;   // how to build it in when unavailable
 };
 std::vector<BackendInfo> device_backends();
 

@@ -24,9 +24,7 @@ DeviceFrame openhaptics_frame() {
   DeviceFrame f;
   f.to_metres = 1e-3;
   // Columns are the native axes in scene coordinates: x -> x, y (up) -> z, z (toward user) -> -y.
-  f.rotation << 1, 0, 0,
-                0, 0, -1,
-                0, 1, 0;
+  f.rotation << 1, 0, 0, 0, 0, -1, 0, 1, 0;
   return f;
 }
 

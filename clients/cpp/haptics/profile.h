@@ -31,10 +31,10 @@ std::optional<DeviceProfile> find_profile(const std::string& name);
 // A device's native frame and units: scene = offset + scale * R * (to_metres * native).
 // Forces: native = R^T * scene (newtons in both; no scaling, so rendered work is not altered).
 struct DeviceFrame {
-  double to_metres = 1;           // native length unit in m (OpenHaptics: 1e-3)
+  double to_metres = 1;              // native length unit in m (OpenHaptics: 1e-3)
   Mat3 rotation = Mat3::Identity();  // native axes -> scene axes
-  Vec3 offset = Vec3::Zero();     // m, scene point of the device origin
-  double scale = 1;               // workspace scale (scene m per device m)
+  Vec3 offset = Vec3::Zero();        // m, scene point of the device origin
+  double scale = 1;                  // workspace scale (scene m per device m)
 };
 
 // OpenHaptics (Touch, Omni): mm, Y up, Z toward the user -> m, Z up: (x, y, z) -> (x, -z, y).

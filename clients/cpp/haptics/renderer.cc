@@ -1,10 +1,9 @@
 #include "haptics/renderer.h"
 
-#include <algorithm>
-#include <cmath>
-
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
 
 namespace conica::haptics {
 

@@ -17,8 +17,9 @@
 //     damper bc, in static equilibrium with the local model:
 //       kc (x - p) + F_env(p) = 0   =>   (kc I - Ks) p = kc x + F0 - Ks x0
 //       F_target = kc (p - x) + bc (v_p - v),   v_p = (p - p_prev) / dt
-//     The device feels the series stiffness kc k / (kc + k) < min(kc, k); kc defaults to k_max. `probe_position()` is
-//     p: the position to send to the server. Without coupling p = x and F_target = F_env(x).
+//     The device feels the series stiffness kc k / (kc + k) < min(kc, k); kc defaults to k_max.
+//     `probe_position()` is p: the position to send to the server. Without coupling p = x and
+//     F_target = F_env(x).
 //  3. Passivity observer / controller (Ryu and Hannaford, impedance form): the work the rendered
 //     force has done on the device, booked exactly for a force held over each period,
 //       W = sum_k F_{k-1} . (x_k - x_{k-1})        (J; W > 0: energy created by the renderer)
@@ -36,34 +37,34 @@ namespace conica::haptics {
 
 // One server reply as the renderer needs it, SI, scene frame.
 struct LocalModel {
-  double t = 0;                    // s, renderer clock when it arrived
-  Vec3 x0 = Vec3::Zero();          // m, probe position the force belongs to
-  Vec3 f0 = Vec3::Zero();          // N, force on the probe at x0
-  Mat3 k = Mat3::Zero();           // N/m, d force / d position at x0
+  double t = 0;            // s, renderer clock when it arrived
+  Vec3 x0 = Vec3::Zero();  // m, probe position the force belongs to
+  Vec3 f0 = Vec3::Zero();  // N, force on the probe at x0
+  Mat3 k = Mat3::Zero();   // N/m, d force / d position at x0
   bool contact = false;
 };
 
 struct RendererOptions {
-  double dt = 1e-3;                // s, servo period
-  bool interpolate = true;         // F0 + Ks (x - x0) between replies; false: hold F0
+  double dt = 1e-3;         // s, servo period
+  bool interpolate = true;  // F0 + Ks (x - x0) between replies; false: hold F0
   bool coupling = true;
-  double coupling_stiffness = 0;   // N/m; 0: the profile's max stiffness
-  double coupling_damping = 0;     // N s/m
-  bool passivity = true;           // observer + controller
-  double max_pc_damping = 0;       // N s/m; 0: the profile's max damping
-  double reply_timeout = 0.1;      // s without a reply before the force fades to zero
+  double coupling_stiffness = 0;  // N/m; 0: the profile's max stiffness
+  double coupling_damping = 0;    // N s/m
+  bool passivity = true;          // observer + controller
+  double max_pc_damping = 0;      // N s/m; 0: the profile's max damping
+  double reply_timeout = 0.1;     // s without a reply before the force fades to zero
 };
 
 struct RendererStats {
   std::uint64_t ticks = 0;
-  std::uint64_t replies = 0, rejected_replies = 0;   // rejected: non-finite values
-  std::uint64_t stale_ticks = 0;     // ticks rendered with no recent reply
+  std::uint64_t replies = 0, rejected_replies = 0;  // rejected: non-finite values
+  std::uint64_t stale_ticks = 0;                    // ticks rendered with no recent reply
   std::uint64_t force_clamped = 0, rate_clamped = 0;
   std::uint64_t stiffness_clamped = 0;  // replies stiffer than the profile's k_max
   std::uint64_t pc_active_ticks = 0;
   std::uint64_t bad_device_samples = 0;
-  double device_work = 0;            // J, W above (after the controller)
-  double pc_dissipated = 0;          // J, energy the controller's damping was asked to remove
+  double device_work = 0;    // J, W above (after the controller)
+  double pc_dissipated = 0;  // J, energy the controller's damping was asked to remove
 };
 
 class Renderer {

@@ -7,8 +7,11 @@ namespace conica::haptics {
 
 WallLink::WallLink(const Vec3& point, const Vec3& normal, double stiffness, int latency_ticks,
                    double dt)
-    : point_(point), normal_(normal.normalized()), k_(stiffness),
-      delay_(std::max(0, latency_ticks) * dt), ring_(static_cast<std::size_t>(latency_ticks) + 16) {}
+    : point_(point),
+      normal_(normal.normalized()),
+      k_(stiffness),
+      delay_(std::max(0, latency_ticks) * dt),
+      ring_(static_cast<std::size_t>(latency_ticks) + 16) {}
 
 void WallLink::send(double t, const Vec3& p) {
   if (t >= drop_from_ && t < drop_to_) {

@@ -22,7 +22,8 @@ class ForceLink {
 };
 
 // A stiff wall: the half-space (p - point) . normal < 0 pushes a probe centre p out with
-//   F = k pen normal,  pen = max(0, -(p - point) . normal),  dF/dp = -k normal normal^T (in contact)
+//   F = k pen normal,  pen = max(0, -(p - point) . normal),  dF/dp = -k normal normal^T (in
+//   contact)
 // Each send is answered `latency_ticks` servo periods later; replies to sends in the window
 // [drop_from, drop_to) (s) are lost. Capacity is fixed at construction.
 class WallLink : public ForceLink {
@@ -30,7 +31,10 @@ class WallLink : public ForceLink {
   WallLink(const Vec3& point, const Vec3& normal, double stiffness, int latency_ticks, double dt);
   void send(double t, const Vec3& probe_position) override;
   bool poll(double t, LocalModel* out) override;
-  void set_drop(double from, double to) { drop_from_ = from; drop_to_ = to; }
+  void set_drop(double from, double to) {
+    drop_from_ = from;
+    drop_to_ = to;
+  }
   std::size_t lost() const { return lost_; }
 
  private:
@@ -42,9 +46,9 @@ class WallLink : public ForceLink {
 
 struct ServoTick {
   DeviceSample device;
-  Vec3 force = Vec3::Zero();   // N, commanded
-  Vec3 probe = Vec3::Zero();   // m, sent to the server
-  int replies = 0;             // taken this tick
+  Vec3 force = Vec3::Zero();  // N, commanded
+  Vec3 probe = Vec3::Zero();  // m, sent to the server
+  int replies = 0;            // taken this tick
   bool device_ok = true;
 };
 

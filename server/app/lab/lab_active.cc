@@ -24,14 +24,14 @@ void register_active_region(CLI::App& app, Runner* run) {
     int far_every = 0;
   };
   auto o = std::make_shared<Opts>();
-  CLI::App* cmd = app.add_subcommand(
-      "active-region", "Compare a probe path with and without the active region");
+  CLI::App* cmd = app.add_subcommand("active-region",
+                                     "Compare a probe path with and without the active region");
   cmd->add_option("--scene", o->scene, "scene file (.pbtxt)")->required();
   cmd->add_option("--probe-script", o->script, "CSV t,probe,x,y,z (s, index, m)")->required();
   cmd->add_option("--ticks", o->ticks, "number of ticks")->capture_default_str();
-  CLI::Option* tol = cmd->add_option(
-      "--tolerance", o->tolerance,
-      "displacement tolerance sizing the region, m (default: the scene's active_region, else 1e-5)");
+  CLI::Option* tol = cmd->add_option("--tolerance", o->tolerance,
+                                     "displacement tolerance sizing the region, m (default: the "
+                                     "scene's active_region, else 1e-5)");
   CLI::Option* far = cmd->add_option(
       "--far-every", o->far_every,
       "far field: one step every N ticks (0: the longest its stability bound allows, -1: frozen; "
@@ -52,14 +52,17 @@ void register_active_region(CLI::App& app, Runner* run) {
       }
       Model full = loaded.value();
       if (full.options.integrator == Integrator::kImplicitEuler) {
-        std::fprintf(stderr, "conica-lab active-region: the active region applies to symplectic "
-                             "and explicit Euler; %s uses implicit Euler\n", o->scene.c_str());
+        std::fprintf(stderr,
+                     "conica-lab active-region: the active region applies to symplectic "
+                     "and explicit Euler; %s uses implicit Euler\n",
+                     o->scene.c_str());
         return 2;
       }
       io::ProbeScript& ps = script.value();
       if (ps.probes.size() > full.probes.size()) {
-        std::fprintf(stderr, "conica-lab active-region: the script drives more probes than the "
-                             "scene has\n");
+        std::fprintf(stderr,
+                     "conica-lab active-region: the script drives more probes than the "
+                     "scene has\n");
         return 2;
       }
       if (o->relative) {
@@ -86,7 +89,7 @@ void register_active_region(CLI::App& app, Runner* run) {
         return 2;
       }
       struct Run {
-        std::vector<Vec3> force;  // (ticks x probes)
+        std::vector<Vec3> force;      // (ticks x probes)
         std::vector<double> tick_us;  // (ticks) step time of each tick, us
         double seconds = 0;
         std::uint64_t awake_sum = 0, rollbacks = 0, whole_body_ticks = 0;
@@ -135,8 +138,8 @@ void register_active_region(CLI::App& app, Runner* run) {
         if ((a.force[k] - b.force[k]).norm() > err) worst = k;
         err = std::max(err, (a.force[k] - b.force[k]).norm());
       }
-      std::printf("scene %s: %d nodes, %d springs, %ld ticks\n", o->scene.c_str(),
-                  full.num_nodes(), full.num_springs(), o->ticks);
+      std::printf("scene %s: %d nodes, %d springs, %ld ticks\n", o->scene.c_str(), full.num_nodes(),
+                  full.num_springs(), o->ticks);
       std::printf("full:   %.1f us per step, peak probe force %.4g N, rollbacks %lu\n",
                   1e6 * a.seconds / o->ticks, fmax, (unsigned long)a.rollbacks);
       std::printf("active: %.1f us per step, mean awake nodes %.0f (%.1f %%), rollbacks %lu\n",
@@ -144,27 +147,30 @@ void register_active_region(CLI::App& app, Runner* run) {
                   100.0 * b.awake_sum / (double(o->ticks) * full.num_nodes()),
                   (unsigned long)b.rollbacks);
       if (b.far_every > 0)
-        std::printf("region: estimated cost %.2f of a whole step (mean); whole body stepped on %lu "
-                    "of %ld ticks (above %.2f, back below %.2f)\n",
-                    b.cost_sum / o->ticks, (unsigned long)b.whole_body_ticks, o->ticks,
-                    active.options.active_whole_body_cost,
-                    kRegionResumeFraction * active.options.active_whole_body_cost);
+        std::printf(
+            "region: estimated cost %.2f of a whole step (mean); whole body stepped on %lu "
+            "of %ld ticks (above %.2f, back below %.2f)\n",
+            b.cost_sum / o->ticks, (unsigned long)b.whole_body_ticks, o->ticks,
+            active.options.active_whole_body_cost,
+            kRegionResumeFraction * active.options.active_whole_body_cost);
       if (b.far_every > 0)
-        std::printf("far field: one step every %d ticks (bound from the measured spectrum %d: "
-                    "omega_max %.0f rad/s, damping bound %.0f 1/s, far inertia x %.3f; Gershgorin at the "
-                    "lightest node %d)\n",
-                    b.far_every, b.measured_every, std::sqrt(b.far_lambda), b.damping_ratio,
-                    b.far_raise, b.far_max_every);
+        std::printf(
+            "far field: one step every %d ticks (bound from the measured spectrum %d: "
+            "omega_max %.0f rad/s, damping bound %.0f 1/s, far inertia x %.3f; Gershgorin at the "
+            "lightest node %d)\n",
+            b.far_every, b.measured_every, std::sqrt(b.far_lambda), b.damping_ratio, b.far_raise,
+            b.far_max_every);
       else
         std::printf("far field: frozen\n");
       auto quantile = [](std::vector<double> v, double q) {
         std::sort(v.begin(), v.end());
         return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
       };
-      std::printf("step time median / 99th percentile / max: full %.0f / %.0f / %.0f us, "
-                  "active %.0f / %.0f / %.0f us\n",
-                  quantile(a.tick_us, 0.5), quantile(a.tick_us, 0.99), quantile(a.tick_us, 1.0),
-                  quantile(b.tick_us, 0.5), quantile(b.tick_us, 0.99), quantile(b.tick_us, 1.0));
+      std::printf(
+          "step time median / 99th percentile / max: full %.0f / %.0f / %.0f us, "
+          "active %.0f / %.0f / %.0f us\n",
+          quantile(a.tick_us, 0.5), quantile(a.tick_us, 0.99), quantile(a.tick_us, 1.0),
+          quantile(b.tick_us, 0.5), quantile(b.tick_us, 0.99), quantile(b.tick_us, 1.0));
       {
         const size_t np = std::max<size_t>(1, ps.probes.size());
         std::printf("worst tick: t = %.3f s, full %.4g N, active %.4g N\n",

@@ -79,11 +79,12 @@ void register_calibrate(CLI::App& app, Runner* run) {
                   "output space mapping steps after the full-body check (one full compression "
                   "each; 0: none)")
       ->capture_default_str();
-  cmd->add_option("--poisson", o->fit.poisson,
-                  "small-strain Poisson ratio of the body, kept by a volume stiffness "
-                  "(bulk_modulus) that scales with the cards (default: the scene's own and, through "
-                  "the full-body grid, lower ones down to --poisson-min; a scene without "
-                  "bulk_modulus gets none)");
+  cmd->add_option(
+      "--poisson", o->fit.poisson,
+      "small-strain Poisson ratio of the body, kept by a volume stiffness "
+      "(bulk_modulus) that scales with the cards (default: the scene's own and, through "
+      "the full-body grid, lower ones down to --poisson-min; a scene without "
+      "bulk_modulus gets none)");
   cmd->add_option("--rate-mm-per-min", o->rate_mm_per_min, "plate speed of the full-body runs")
       ->capture_default_str();
   cmd->add_option("--out", o->out, "write the fitted card here (scene fragment)")->required();
@@ -181,10 +182,10 @@ void register_calibrate(CLI::App& app, Runner* run) {
         std::fprintf(stderr, "conica-lab calibrate: cannot write %s\n", o->out.c_str());
         return 1;
       }
-      std::printf("fitted group(s) written to %s; lattice Zener ratio %.4g, Poisson %.4g; body "
-                  "Poisson %.4g with bulk_modulus %.6g Pa\n",
-                  o->out.c_str(), r.moduli.anisotropy, r.moduli.poisson, r.poisson,
-                  r.bulk_modulus);
+      std::printf(
+          "fitted group(s) written to %s; lattice Zener ratio %.4g, Poisson %.4g; body "
+          "Poisson %.4g with bulk_modulus %.6g Pa\n",
+          o->out.c_str(), r.moduli.anisotropy, r.moduli.poisson, r.poisson, r.bulk_modulus);
       if (!o->curves.empty()) {
         std::ofstream cv(o->curves);
         cv << "displacement_mm,data_N,surrogate_N,full_N\n";
@@ -204,13 +205,15 @@ void register_calibrate(CLI::App& app, Runner* run) {
             "plot_curves", "--out '" + o->plot + "' --title 'Calibration: " + o->scene +
                                "' --xlabel 'plate travel (mm)' --ylabel 'force (N)' --columns "
                                "data_N,surrogate_N,full_N --labels 'measured (mean),cell "
-                               "surrogate,full body' '" + o->curves + "'");
+                               "surrogate,full body' '" +
+                               o->curves + "'");
         if (rc != 0) return rc;
       }
       if (r.floor.error >= 0)
-        std::printf("column floor (best sum of conical laws along the load): %.3f %%, with "
-                    "pre-compressed laws: %.3f %%\n",
-                    100 * r.floor.error, 100 * r.floor_precompressed.error);
+        std::printf(
+            "column floor (best sum of conical laws along the load): %.3f %%, with "
+            "pre-compressed laws: %.3f %%\n",
+            100 * r.floor.error, 100 * r.floor_precompressed.error);
       std::printf("average relative error: %.3f %%\n",
                   100 * (r.full_error >= 0 ? r.full_error : r.surrogate_error));
       return 0;

@@ -35,8 +35,7 @@ void register_compress(CLI::App& app, Runner* run) {
   cmd->add_option("--plot", o->plot, "also draw the curve to this PNG file");
   cmd->callback([o, run] {
     *run = [o]() -> int {
-      if (!(o->rate_mm_per_min > 0) || !(o->to_strain > 0 && o->to_strain < 1) ||
-          o->samples < 1) {
+      if (!(o->rate_mm_per_min > 0) || !(o->to_strain > 0 && o->to_strain < 1) || o->samples < 1) {
         std::fprintf(stderr,
                      "conica-lab compress: need --rate-mm-per-min > 0, 0 < --to-strain < 1, "
                      "--samples >= 1\n");
@@ -91,8 +90,10 @@ void register_compress(CLI::App& app, Runner* run) {
           std::fclose(f);
         }
         return run_plot_script("plot_curves", "--out '" + o->plot + "' --title 'Compression of " +
-                                                  o->scene + "' --xlabel 'plate travel (mm)' "
-                                                  "--ylabel 'force (N)' '" + data + "'");
+                                                  o->scene +
+                                                  "' --xlabel 'plate travel (mm)' "
+                                                  "--ylabel 'force (N)' '" +
+                                                  data + "'");
       }
       return 0;
     };

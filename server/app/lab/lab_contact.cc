@@ -14,7 +14,6 @@
 #include <sys/stat.h>
 
 #include <Eigen/Geometry>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -100,9 +99,9 @@ struct Scene {
 // ---------------------------------------------------------------- geometry of the top surface
 
 struct Top {
-  std::vector<int> tris;  // surface triangles of the top face
-  double spacing = 0;     // m, median of their two shorter edges
-  double cx = 0, cy = 0;  // m, centre of the top's (x, y) bounding box
+  std::vector<int> tris;     // surface triangles of the top face
+  double spacing = 0;        // m, median of their two shorter edges
+  double cx = 0, cy = 0;     // m, centre of the top's (x, y) bounding box
   Vec3 node = Vec3::Zero();  // the top node nearest the centre
   Vec3 face = Vec3::Zero();  // the face point near the centre (quad centre or triangle centroid)
   bool quad = false;         // face is the centre of a quad of two triangles
@@ -324,8 +323,8 @@ struct PressResult {
   double end_force = 0;
 };
 
-PressResult press(const Model& m, const Vec3& at, double ref, double R, double speed,
-                  double depth, double hold_s) {
+PressResult press(const Model& m, const Vec3& at, double ref, double R, double speed, double depth,
+                  double hold_s) {
   const double dt = m.options.dt;
   const long press_ticks = std::max(1L, std::lround(depth / (speed * dt)));
   const long hold_ticks = std::lround(hold_s / dt);
@@ -365,9 +364,11 @@ PressResult press(const Model& m, const Vec3& at, double ref, double R, double s
 
 int run_press(const Opts& o, const std::vector<Scene>& scenes) {
   std::printf("\n### press\n\n");
-  std::printf("| scene | R_mm | R/s | position | first force at_mm | F>0 from 0.1 mm | drops >1 %% "
-              "| max drop %% | last drop at_mm | max shortfall %% | at_mm | F at max depth (N) | max pen/R | rollbacks | hold F (N) | hold "
-              "std/mean %% | wall s |\n");
+  std::printf(
+      "| scene | R_mm | R/s | position | first force at_mm | F>0 from 0.1 mm | drops >1 %% "
+      "| max drop %% | last drop at_mm | max shortfall %% | at_mm | F at max depth (N) | max pen/R "
+      "| rollbacks | hold F (N) | hold "
+      "std/mean %% | wall s |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   std::fflush(stdout);
   for (const Scene& sc : scenes) {
@@ -398,21 +399,20 @@ int run_press(const Opts& o, const std::vector<Scene>& scenes) {
           return 1;
         }
         const double depth = o.max_depth_fraction * (zt - zb);
-        const PressResult pr =
-            press(m, at, zt + R, R, o.speed_mm_s * 1e-3, depth, o.hold_s);
-        const std::string posname = pos == "node" ? "node" : (top.quad ? "quad centre" : "tri centroid");
-        std::printf("| %s | %.3g | %.3g | %s | %s | %s | %d | %.3g | %s | %.3g | %s | %.4g | %.3f | %llu | %.4g | "
-                    "%.3g | %.1f |\n",
-                    sc.name.c_str(), R * 1e3, factor, posname.c_str(),
-                    pr.first_force < 0 ? "none" : fmt("%.3f", pr.first_force * 1e3).c_str(),
-                    pr.positive ? "yes" : "NO", pr.drops, 100 * pr.max_drop,
-                    pr.last_drop < 0 ? "-" : fmt("%.3f", pr.last_drop * 1e3).c_str(),
-                    100 * pr.shortfall,
-                    pr.shortfall_at < 0 ? "-" : fmt("%.2f", pr.shortfall_at * 1e3).c_str(),
-                    pr.end_force,
-                    pr.run.max_penetration / R,
-                    static_cast<unsigned long long>(pr.run.rollbacks), pr.hold_mean,
-                    100 * pr.hold_rel_sd, pr.run.seconds);
+        const PressResult pr = press(m, at, zt + R, R, o.speed_mm_s * 1e-3, depth, o.hold_s);
+        const std::string posname =
+            pos == "node" ? "node" : (top.quad ? "quad centre" : "tri centroid");
+        std::printf(
+            "| %s | %.3g | %.3g | %s | %s | %s | %d | %.3g | %s | %.3g | %s | %.4g | %.3f | %llu | "
+            "%.4g | "
+            "%.3g | %.1f |\n",
+            sc.name.c_str(), R * 1e3, factor, posname.c_str(),
+            pr.first_force < 0 ? "none" : fmt("%.3f", pr.first_force * 1e3).c_str(),
+            pr.positive ? "yes" : "NO", pr.drops, 100 * pr.max_drop,
+            pr.last_drop < 0 ? "-" : fmt("%.3f", pr.last_drop * 1e3).c_str(), 100 * pr.shortfall,
+            pr.shortfall_at < 0 ? "-" : fmt("%.2f", pr.shortfall_at * 1e3).c_str(), pr.end_force,
+            pr.run.max_penetration / R, static_cast<unsigned long long>(pr.run.rollbacks),
+            pr.hold_mean, 100 * pr.hold_rel_sd, pr.run.seconds);
         std::fflush(stdout);
         if (!write_csv(o, "press-" + sc.name + "-r" + fmt("%g", factor) + "-" + pos, pr.run))
           return 1;
@@ -426,7 +426,7 @@ int run_press(const Opts& o, const std::vector<Scene>& scenes) {
 
 struct Block {
   std::string label;
-  BodySpec spec;     // clamped base, implicit Euler
+  BodySpec spec;  // clamped base, implicit Euler
   double thickness = 0;
   double spacing = 0;
 };
@@ -516,8 +516,8 @@ bool plate_modulus(const Opts& o, const BodySpec& block, double* E, double* nu, 
     }
   }
   const double e_ax = top_travel / std::max(1, ntop) / h;
-  const double e_lat = 0.5 * ((w1x[1] - w1x[0]) / (w0x[1] - w0x[0]) - 1 +
-                              (w1y[1] - w1y[0]) / (w0y[1] - w0y[0]) - 1);
+  const double e_lat =
+      0.5 * ((w1x[1] - w1x[0]) / (w0x[1] - w0x[0]) - 1 + (w1y[1] - w1y[0]) / (w0y[1] - w0y[0]) - 1);
   const double area = (hi.x() - lo.x()) * (hi.y() - lo.y());
   *E = F / area / e_ax;
   *nu = e_lat / e_ax;
@@ -581,15 +581,19 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
     }
   }
   std::printf("\n### hertz\n\n");
-  std::printf("Card of %s; implicit Euler, dt %.3g ms, %d Newton x %d CG (tolerance 1e-10), no "
-              "mass damping (each step close to a static solve); press to 0.1 R in %d equal depth levels, "
-              "each held %d more steps and read at its last. Errors over proxy depth d in [0.02 R, 0.1 R], R = "
-              "%.3g mm (sphere and punch alike).\n\n",
-              sc.name.c_str(), o.hertz_dt_ms, o.hertz_newton, o.hertz_cg, o.hertz_steps, o.hertz_settle,
-              o.sphere_radius_mm);
-  std::printf("| block | spacing_mm | nodes | E (Pa) | cell E (Pa) | nu | E* (Pa) | model E* (Pa) | tool | "
-              "contact radius / thickness | max proxy depth_mm | max faces | mean err %% | max err %% | err at 0.1 R %% | max pen/R "
-              "| rollbacks | wall s |\n");
+  std::printf(
+      "Card of %s; implicit Euler, dt %.3g ms, %d Newton x %d CG (tolerance 1e-10), no "
+      "mass damping (each step close to a static solve); press to 0.1 R in %d equal depth levels, "
+      "each held %d more steps and read at its last. Errors over proxy depth d in [0.02 R, 0.1 R], "
+      "R = "
+      "%.3g mm (sphere and punch alike).\n\n",
+      sc.name.c_str(), o.hertz_dt_ms, o.hertz_newton, o.hertz_cg, o.hertz_steps, o.hertz_settle,
+      o.sphere_radius_mm);
+  std::printf(
+      "| block | spacing_mm | nodes | E (Pa) | cell E (Pa) | nu | E* (Pa) | model E* (Pa) | tool | "
+      "contact radius / thickness | max proxy depth_mm | max faces | mean err %% | max err %% | "
+      "err at 0.1 R %% | max pen/R "
+      "| rollbacks | wall s |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   std::fflush(stdout);
   const double R = o.sphere_radius_mm * 1e-3, a = o.punch_radius_mm * 1e-3;
@@ -606,7 +610,8 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
     {
       Model cell;
       if (make_uniaxial_cell(b.spec.groups, b.spec.mapping, b.spacing, &cell, b.spec.bulk_modulus,
-                             b.spec.shear_modulus).empty())
+                             b.spec.shear_modulus)
+              .empty())
         E_cell = cell_stress_curve(cell, {o.compression_strain}).front() / o.compression_strain;
     }
     for (int tool = 0; tool < 2; ++tool) {
@@ -630,12 +635,14 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
       double sum = 0, worst = 0, at_end = 0, max_proxy = 0;
       int n = 0, max_contacts = 0;
       for (const Sample& q : run.s)
-        max_proxy = std::max(max_proxy, q.proxy_depth), max_contacts = std::max(max_contacts, q.contacts);
+        max_proxy = std::max(max_proxy, q.proxy_depth),
+        max_contacts = std::max(max_contacts, q.contacts);
       for (long k = per - 1; k < static_cast<long>(run.s.size()); k += per) {
         const Sample& q = run.s[k];
         const double d = q.proxy_depth;
         if (d < 0.02 * R || d > 0.1 * R * (1 + 1e-9)) continue;
-        const double th = sphere ? 4.0 / 3.0 * Es * std::sqrt(R) * std::pow(d, 1.5) : 2 * a * Es * d;
+        const double th =
+            sphere ? 4.0 / 3.0 * Es * std::sqrt(R) * std::pow(d, 1.5) : 2 * a * Es * d;
         const double rel = q.f.z() / th - 1;
         sum += std::abs(rel);
         worst = std::max(worst, std::abs(rel));
@@ -643,18 +650,20 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
         ++n;
       }
       const double contact_radius = sphere ? std::sqrt(R * 0.1 * R) : a;
-      std::printf("| %s | %.3g | %d | %.5g | %.5g | %.4f | %.5g | %.5g | %s | %.3f | %.3f | %d | %s | "
-                  "%s | %s | %.3f | %llu | %.1f |\n",
-                  b.label.c_str(), b.spacing * 1e3, m.num_nodes(), E, E_cell, nu, Es,
-                  m.contact_modulus,
-                  sphere ? fmt("sphere R %.3g mm", r * 1e3).c_str()
-                         : fmt("punch a %.3g mm", r * 1e3).c_str(),
-                  contact_radius / b.thickness, max_proxy * 1e3, max_contacts, n ? fmt("%.2f", 100 * sum / n).c_str() : "n/a",
-                  n ? fmt("%.2f", 100 * worst).c_str() : "n/a",
-                  n ? fmt("%+.2f", 100 * at_end).c_str() : "n/a", run.max_penetration / r,
-                  static_cast<unsigned long long>(run.rollbacks), run.seconds);
+      std::printf(
+          "| %s | %.3g | %d | %.5g | %.5g | %.4f | %.5g | %.5g | %s | %.3f | %.3f | %d | %s | "
+          "%s | %s | %.3f | %llu | %.1f |\n",
+          b.label.c_str(), b.spacing * 1e3, m.num_nodes(), E, E_cell, nu, Es, m.contact_modulus,
+          sphere ? fmt("sphere R %.3g mm", r * 1e3).c_str()
+                 : fmt("punch a %.3g mm", r * 1e3).c_str(),
+          contact_radius / b.thickness, max_proxy * 1e3, max_contacts,
+          n ? fmt("%.2f", 100 * sum / n).c_str() : "n/a",
+          n ? fmt("%.2f", 100 * worst).c_str() : "n/a",
+          n ? fmt("%+.2f", 100 * at_end).c_str() : "n/a", run.max_penetration / r,
+          static_cast<unsigned long long>(run.rollbacks), run.seconds);
       std::fflush(stdout);
-      if (!write_csv(o, "hertz-" + fmt("%g", b.spacing * 1e3) + "mm-" + (sphere ? "sphere" : "punch"),
+      if (!write_csv(o,
+                     "hertz-" + fmt("%g", b.spacing * 1e3) + "mm-" + (sphere ? "sphere" : "punch"),
                      run))
         return 1;
     }
@@ -666,12 +675,14 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
 
 int run_drag(const Opts& o, const std::vector<Scene>& scenes) {
   std::printf("\n### drag\n\n");
-  std::printf("Pressed at %.3g mm/s, 0.2 s settle, then dragged along +x at %.3g mm/s across %.3g "
-              "spacings at constant target height, along the node row nearest the top's centre; "
-              "ripple = (max - min) / mean of the normal force over the middle three spacings.\n\n",
-              o.speed_mm_s, o.speed_mm_s, o.drag_spacings);
-  std::printf("| scene | R_mm | R/s | depth/R | mean Fz (N) | ripple %% | mean Fx (N) | max pen/R | "
-              "rollbacks | wall s |\n");
+  std::printf(
+      "Pressed at %.3g mm/s, 0.2 s settle, then dragged along +x at %.3g mm/s across %.3g "
+      "spacings at constant target height, along the node row nearest the top's centre; "
+      "ripple = (max - min) / mean of the normal force over the middle three spacings.\n\n",
+      o.speed_mm_s, o.speed_mm_s, o.drag_spacings);
+  std::printf(
+      "| scene | R_mm | R/s | depth/R | mean Fz (N) | ripple %% | mean Fx (N) | max pen/R | "
+      "rollbacks | wall s |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   std::fflush(stdout);
   for (const Scene& sc : scenes) {
@@ -736,11 +747,13 @@ int run_drag(const Opts& o, const std::vector<Scene>& scenes) {
 
 int run_hold(const Opts& o, const std::vector<Scene>& scenes) {
   std::printf("\n### hold\n\n");
-  std::printf("A %.3g mm sphere at the top centre pressed to %.3g mm over %.3g s, held %.3g s; "
-              "statistics over the hold's last second (the scene's time step and budgets).\n\n",
-              o.hold_radius_mm, o.hold_depth_mm, o.hold_press_s, o.hold_hold_s);
-  std::printf("| scene | integrator | F at end of press (N) | hold F (N) | hold std/mean %% | "
-              "max pen/R | rollbacks | wall s |\n");
+  std::printf(
+      "A %.3g mm sphere at the top centre pressed to %.3g mm over %.3g s, held %.3g s; "
+      "statistics over the hold's last second (the scene's time step and budgets).\n\n",
+      o.hold_radius_mm, o.hold_depth_mm, o.hold_press_s, o.hold_hold_s);
+  std::printf(
+      "| scene | integrator | F at end of press (N) | hold F (N) | hold std/mean %% | "
+      "max pen/R | rollbacks | wall s |\n");
   std::printf("|---|---|---|---|---|---|---|---|\n");
   std::fflush(stdout);
   const double R = o.hold_radius_mm * 1e-3, depth = o.hold_depth_mm * 1e-3;
@@ -777,12 +790,14 @@ int run_hold(const Opts& o, const std::vector<Scene>& scenes) {
       double mean, rel;
       mean_sd(f, &mean, &rel);
       std::printf("| %s | %s%s | %.4g | %.4g | %.3g | %.3f | %llu | %.1f |\n", sc.name.c_str(),
-                  integrator_name(integ), nodes ? " (control: NODES contact)" : "", run.s[tp].f.z(), mean, 100 * rel,
-                  run.max_penetration / R, static_cast<unsigned long long>(run.rollbacks),
-                  run.seconds);
+                  integrator_name(integ), nodes ? " (control: NODES contact)" : "", run.s[tp].f.z(),
+                  mean, 100 * rel, run.max_penetration / R,
+                  static_cast<unsigned long long>(run.rollbacks), run.seconds);
       std::fflush(stdout);
-      if (!write_csv(o, std::string("hold-") + sc.name + "-" + integrator_name(integ) +
-                            (nodes ? "-nodes" : ""), run))
+      if (!write_csv(o,
+                     std::string("hold-") + sc.name + "-" + integrator_name(integ) +
+                         (nodes ? "-nodes" : ""),
+                     run))
         return 1;
     }
   }
@@ -796,8 +811,9 @@ int run_hold(const Opts& o, const std::vector<Scene>& scenes) {
 int run_speed_check(const Opts& o, const std::vector<Scene>& scenes) {
   const Scene& sc = scenes.front();
   std::printf("\n### quasi-static check\n\n");
-  std::printf("| case | speed_mm_s | F at 12.5, 25, ..., 100 %% of the depth (N) | abs. difference vs "
-              "half speed at each, %% | max %% |\n|---|---|---|---|---|\n");
+  std::printf(
+      "| case | speed_mm_s | F at 12.5, 25, ..., 100 %% of the depth (N) | abs. difference vs "
+      "half speed at each, %% | max %% |\n|---|---|---|---|---|\n");
   Model pm;
   if (std::string e = with_tool(sc.spec, 1e-3, ToolShape::kSphere, &pm); !e.empty()) {
     std::fprintf(stderr, "%s: --scene %s: %s\n", kCmd, sc.path.c_str(), e.c_str());
@@ -819,7 +835,8 @@ int run_speed_check(const Opts& o, const std::vector<Scene>& scenes) {
       // Force at the tick whose tool depth is nearest q x depth.
       double best = 1e9, f = 0;
       for (const Sample& s : pr.run.s)
-        if (std::abs(s.tool_depth - q * depth) < best) best = std::abs(s.tool_depth - q * depth), f = s.f.z();
+        if (std::abs(s.tool_depth - q * depth) < best)
+          best = std::abs(s.tool_depth - q * depth), f = s.f.z();
       at[k].push_back(f);
     }
   }
@@ -841,26 +858,32 @@ int run_speed_check(const Opts& o, const std::vector<Scene>& scenes) {
 
 bool valid(const Opts& o, std::string* why) {
   auto positive = [](const std::vector<double>& v) {
-    return !v.empty() && std::all_of(v.begin(), v.end(), [](double x) { return x > 0 && std::isfinite(x); });
+    return !v.empty() &&
+           std::all_of(v.begin(), v.end(), [](double x) { return x > 0 && std::isfinite(x); });
   };
-  if (!positive(o.radius_factors)) return *why = "--radius-factors: every factor must be > 0", false;
+  if (!positive(o.radius_factors))
+    return *why = "--radius-factors: every factor must be > 0", false;
   for (const std::string& p : o.positions)
-    if (p != "node" && p != "face") return *why = "--positions: unknown position '" + p + "' (node, face)", false;
+    if (p != "node" && p != "face")
+      return *why = "--positions: unknown position '" + p + "' (node, face)", false;
   if (o.positions.empty()) return *why = "--positions: give node and/or face", false;
   if (!(o.speed_mm_s > 0)) return *why = "--speed-mm-s must be > 0", false;
   if (!(o.max_depth_fraction > 0 && o.max_depth_fraction < 1))
     return *why = "--max-depth-fraction must be in (0, 1)", false;
   if (!(o.hold_s >= 0)) return *why = "--hold-s must be >= 0", false;
-  if (o.size_mm.size() != 3 || !positive(o.size_mm)) return *why = "--size: three lengths > 0 (mm)", false;
+  if (o.size_mm.size() != 3 || !positive(o.size_mm))
+    return *why = "--size: three lengths > 0 (mm)", false;
   if (!positive(o.spacings_mm)) return *why = "--spacing-mm: every spacing must be > 0", false;
-  if (!o.cells.empty() && (o.cells.size() != 3 || *std::min_element(o.cells.begin(), o.cells.end()) < 1))
+  if (!o.cells.empty() &&
+      (o.cells.size() != 3 || *std::min_element(o.cells.begin(), o.cells.end()) < 1))
     return *why = "--cells: three counts >= 1", false;
   if (!(o.sphere_radius_mm > 0)) return *why = "--sphere-radius-mm must be > 0", false;
   if (!(o.punch_radius_mm > 0)) return *why = "--punch-radius-mm must be > 0", false;
   if (o.hertz_steps < 5) return *why = "--hertz-steps must be >= 5", false;
   if (o.hertz_settle < 0) return *why = "--hertz-settle must be >= 0", false;
   if (!(o.hertz_dt_ms > 0)) return *why = "--hertz-dt-ms must be > 0", false;
-  if (o.hertz_newton < 1 || o.hertz_cg < 1) return *why = "--hertz-newton and --hertz-cg must be >= 1", false;
+  if (o.hertz_newton < 1 || o.hertz_cg < 1)
+    return *why = "--hertz-newton and --hertz-cg must be >= 1", false;
   if (!(o.compression_strain > 0 && o.compression_strain < 0.2))
     return *why = "--compression-strain must be in (0, 0.2)", false;
   if (!positive(o.drag_factors)) return *why = "--drag-factors: every factor must be > 0", false;
@@ -879,34 +902,46 @@ void register_contact(CLI::App& app, Runner* run) {
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
       "contact", "Measure the surface contact: presses, Hertz and Sneddon, drags, holds");
-  cmd->add_option("--scene", o->scenes, "scene file(s) (.pbtxt); --suite: paper-cube, "
-                                        "paper-cube-hooke, anisotropic-block");
-  cmd->add_flag("--suite", o->suite, "every experiment (press, hertz, drag, hold, a quasi-static "
-                                     "check) on the default scenes");
+  cmd->add_option("--scene", o->scenes,
+                  "scene file(s) (.pbtxt); --suite: paper-cube, "
+                  "paper-cube-hooke, anisotropic-block");
+  cmd->add_flag("--suite", o->suite,
+                "every experiment (press, hertz, drag, hold, a quasi-static "
+                "check) on the default scenes");
   cmd->add_option("--experiment", o->experiments, "press, hertz, drag, hold, speed (repeatable)")
       ->delimiter(',');
   cmd->add_option("--out-dir", o->out_dir, "write one CSV per case here");
   cmd->add_option("--speed-mm-s", o->speed_mm_s, "press and drag speed")->capture_default_str();
   cmd->add_option("--radius-factors", o->radius_factors, "press radii / top lattice spacing")
-      ->delimiter(',')->capture_default_str();
+      ->delimiter(',')
+      ->capture_default_str();
   cmd->add_option("--positions", o->positions, "press positions: node, face")
-      ->delimiter(',')->capture_default_str();
+      ->delimiter(',')
+      ->capture_default_str();
   cmd->add_option("--max-depth-fraction", o->max_depth_fraction,
-                  "press depth / body height under the press point")->capture_default_str();
+                  "press depth / body height under the press point")
+      ->capture_default_str();
   cmd->add_option("--hold-s", o->hold_s, "press: hold after the press (s)")->capture_default_str();
-  cmd->add_option("--size", o->size_mm, "hertz block size x,y,z (mm)")->delimiter(',')
+  cmd->add_option("--size", o->size_mm, "hertz block size x,y,z (mm)")
+      ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--spacing-mm", o->spacings_mm, "hertz block lattice spacings (mm)")
-      ->delimiter(',')->capture_default_str();
-  cmd->add_option("--cells", o->cells, "hertz: one block of these cells x,y,z (overrides "
-                                       "--spacing-mm)")->delimiter(',');
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--cells", o->cells,
+                  "hertz: one block of these cells x,y,z (overrides "
+                  "--spacing-mm)")
+      ->delimiter(',');
   cmd->add_flag("--hertz-on-scene", o->hertz_on_scene,
                 "hertz on the scene's own body instead of a block");
-  cmd->add_option("--sphere-radius-mm", o->sphere_radius_mm, "hertz sphere R")->capture_default_str();
-  cmd->add_option("--punch-radius-mm", o->punch_radius_mm, "hertz punch radius")->capture_default_str();
+  cmd->add_option("--sphere-radius-mm", o->sphere_radius_mm, "hertz sphere R")
+      ->capture_default_str();
+  cmd->add_option("--punch-radius-mm", o->punch_radius_mm, "hertz punch radius")
+      ->capture_default_str();
   cmd->add_option("--hertz-steps", o->hertz_steps, "hertz: depth levels of the press to 0.1 R")
       ->capture_default_str();
-  cmd->add_option("--hertz-settle", o->hertz_settle, "hertz: steps held at each level before it is read")
+  cmd->add_option("--hertz-settle", o->hertz_settle,
+                  "hertz: steps held at each level before it is read")
       ->capture_default_str();
   cmd->add_option("--hertz-dt-ms", o->hertz_dt_ms, "hertz implicit step")->capture_default_str();
   cmd->add_option("--hertz-newton", o->hertz_newton, "hertz Newton iterations per step")
@@ -914,14 +949,18 @@ void register_contact(CLI::App& app, Runner* run) {
   cmd->add_option("--hertz-cg", o->hertz_cg, "hertz CG iterations per Newton iteration")
       ->capture_default_str();
   cmd->add_option("--compression-strain", o->compression_strain,
-                  "hertz: plate compression strain for E and nu")->capture_default_str();
-  cmd->add_option("--drag-factors", o->drag_factors, "drag radii / spacing")->delimiter(',')
+                  "hertz: plate compression strain for E and nu")
       ->capture_default_str();
-  cmd->add_option("--drag-depths", o->drag_depths, "drag depths / R")->delimiter(',')
+  cmd->add_option("--drag-factors", o->drag_factors, "drag radii / spacing")
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--drag-depths", o->drag_depths, "drag depths / R")
+      ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--drag-spacings", o->drag_spacings, "drag length in node spacings")
       ->capture_default_str();
-  cmd->add_option("--hold-radius-mm", o->hold_radius_mm, "hold sphere radius")->capture_default_str();
+  cmd->add_option("--hold-radius-mm", o->hold_radius_mm, "hold sphere radius")
+      ->capture_default_str();
   cmd->add_option("--hold-depth-mm", o->hold_depth_mm, "hold press depth")->capture_default_str();
   cmd->add_option("--hold-press-s", o->hold_press_s, "hold: press duration")->capture_default_str();
   cmd->add_option("--hold-hold-s", o->hold_hold_s, "hold: hold duration (>= 1 s)")
@@ -936,23 +975,28 @@ void register_contact(CLI::App& app, Runner* run) {
       std::vector<std::string> exps = o->experiments;
       if (o->suite && exps.empty()) exps = {"press", "hertz", "drag", "hold", "speed"};
       if (exps.empty()) {
-        std::fprintf(stderr, "%s: give --experiment press|hertz|drag|hold|speed or --suite\n", kCmd);
+        std::fprintf(stderr, "%s: give --experiment press|hertz|drag|hold|speed or --suite\n",
+                     kCmd);
         return 2;
       }
       for (const std::string& e : exps)
         if (e != "press" && e != "hertz" && e != "drag" && e != "hold" && e != "speed") {
-          std::fprintf(stderr, "%s: --experiment: unknown experiment '%s' (press, hertz, drag, "
-                               "hold, speed)\n", kCmd, e.c_str());
+          std::fprintf(stderr,
+                       "%s: --experiment: unknown experiment '%s' (press, hertz, drag, "
+                       "hold, speed)\n",
+                       kCmd, e.c_str());
           return 2;
         }
       std::vector<std::string> paths = o->scenes;
       const bool defaults = paths.empty();
       if (defaults) {
         if (!o->suite) {
-          std::fprintf(stderr, "%s: --scene is required (or --suite for the default scenes)\n", kCmd);
+          std::fprintf(stderr, "%s: --scene is required (or --suite for the default scenes)\n",
+                       kCmd);
           return 2;
         }
-        paths = {find_scene("configs/paper-cube.pbtxt"), find_scene("configs/paper-cube-hooke.pbtxt"),
+        paths = {find_scene("configs/paper-cube.pbtxt"),
+                 find_scene("configs/paper-cube-hooke.pbtxt"),
                  find_scene("configs/anisotropic-block.pbtxt")};
       }
       std::vector<Scene> scenes;

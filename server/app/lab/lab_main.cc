@@ -10,8 +10,8 @@
 namespace conica::lab {
 
 int run_plot_script(const std::string& name, const std::string& args) {
-  const std::string cmd = std::string("/usr/bin/python3 '") + CONICA_SOURCE_DIR + "/scripts/" +
-                          name + ".py' " + args;
+  const std::string cmd =
+      std::string("/usr/bin/python3 '") + CONICA_SOURCE_DIR + "/scripts/" + name + ".py' " + args;
   const int rc = std::system(cmd.c_str());
   if (rc != 0) std::fprintf(stderr, "conica-lab: plotting failed (%s)\n", cmd.c_str());
   return rc == 0 ? 0 : 1;

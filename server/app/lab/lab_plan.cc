@@ -43,7 +43,8 @@ double measure_tick_us(const Model& model, long ticks) {
   for (long k = 0; k < ticks; ++k) {
     const auto t0 = std::chrono::steady_clock::now();
     step(model, s, ws);
-    us.push_back(1e6 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    us.push_back(1e6 *
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
   std::nth_element(us.begin(), us.begin() + static_cast<long>(us.size() / 2), us.end());
   return us[us.size() / 2];
@@ -97,8 +98,9 @@ void register_plan(CLI::App& app, Runner* run) {
     *run = [o, cmd]() -> int {
       const char* me = "conica-lab plan";
       if (!(o->tolerance > 0) || !std::isfinite(o->tolerance)) {
-        std::fprintf(stderr, "%s: --tolerance must be a relative error > 0 (0.05 for 5 %%), got %g\n",
-                     me, o->tolerance);
+        std::fprintf(stderr,
+                     "%s: --tolerance must be a relative error > 0 (0.05 for 5 %%), got %g\n", me,
+                     o->tolerance);
         return 2;
       }
       if (!(o->budget_us > 0) || !std::isfinite(o->budget_us)) {
@@ -160,10 +162,10 @@ void register_plan(CLI::App& app, Runner* run) {
       }
 
       // Which experiment and law the scene is like.
-      const std::string experiment = !o->experiment.empty()
-                                         ? o->experiment
-                                         : (scene.value().mesh_path.empty() ? "compression"
-                                                                            : "indentation");
+      const std::string experiment =
+          !o->experiment.empty()
+              ? o->experiment
+              : (scene.value().mesh_path.empty() ? "compression" : "indentation");
       int conical = 0;
       for (const SpringGroup& g : model.groups) conical += g.card.law == LawKind::kConical;
       const std::string law = conical > 0 ? "conical" : "hooke";
@@ -178,8 +180,9 @@ void register_plan(CLI::App& app, Runner* run) {
           match = &r;
       }
       if (!match) {
-        std::fprintf(stderr, "%s: %s has no %s rows with %s springs and symplectic Euler at 1 "
-                             "substep to calibrate against\n",
+        std::fprintf(stderr,
+                     "%s: %s has no %s rows with %s springs and symplectic Euler at 1 "
+                     "substep to calibrate against\n",
                      me, data_path.c_str(), experiment.c_str(), law.c_str());
         return 2;
       }
@@ -202,10 +205,11 @@ void register_plan(CLI::App& app, Runner* run) {
       std::printf("scene %s: %d nodes, %d springs, %s springs; like the %s data (%s)\n",
                   o->scene.c_str(), model.num_nodes(), model.num_springs(), law.c_str(),
                   experiment.c_str(), data_path.c_str());
-      std::printf("calibration: symplectic Euler x1 here %.1f us per tick (median of %ld); data "
-                  "at %s (%d nodes) %.1f us: costs x %.3g\n",
-                  measured, o->calibration_ticks, match->resolution.c_str(), match->nodes,
-                  match->step_us, q.cost_scale);
+      std::printf(
+          "calibration: symplectic Euler x1 here %.1f us per tick (median of %ld); data "
+          "at %s (%d nodes) %.1f us: costs x %.3g\n",
+          measured, o->calibration_ticks, match->resolution.c_str(), match->nodes, match->step_us,
+          q.cost_scale);
       const Plan p = plan(rows, q);
       auto resolution_note = [&](const TradeoffRow& r) {
         char buf[200];
@@ -225,19 +229,21 @@ void register_plan(CLI::App& app, Runner* run) {
                     resolution_note(r).c_str(), c.cost_us, 100 * c.error);
       };
       if (!p.found) {
-        std::printf("no setting meets %.3g %% within %.0f us per tick (%d settings of the data "
-                    "considered). Closest:\n",
-                    100 * o->tolerance, o->budget_us, p.candidates);
+        std::printf(
+            "no setting meets %.3g %% within %.0f us per tick (%d settings of the data "
+            "considered). Closest:\n",
+            100 * o->tolerance, o->budget_us, p.candidates);
         for (const PlanCandidate& c : p.closest) line(c);
         return 3;
       }
       const TradeoffRow& r = rows[p.chosen.row];
       std::printf("chosen: %s; %s\n", describe(r).c_str(), resolution_note(r).c_str());
-      std::printf("why: predicted %.1f us per tick (budget %.0f us) and force error %.3g %% "
-                  "(tolerance %.3g %%): the cheapest of the settings meeting both, among %d "
-                  "stable %s settings measured on the %s\n",
-                  p.chosen.cost_us, o->budget_us, 100 * p.chosen.error, 100 * o->tolerance,
-                  p.candidates, law.c_str(), experiment.c_str());
+      std::printf(
+          "why: predicted %.1f us per tick (budget %.0f us) and force error %.3g %% "
+          "(tolerance %.3g %%): the cheapest of the settings meeting both, among %d "
+          "stable %s settings measured on the %s\n",
+          p.chosen.cost_us, o->budget_us, 100 * p.chosen.error, 100 * o->tolerance, p.candidates,
+          law.c_str(), experiment.c_str());
       if (!p.runners_up.empty()) {
         std::printf("runners-up:\n");
         for (const PlanCandidate& c : p.runners_up) line(c);

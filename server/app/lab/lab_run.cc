@@ -20,7 +20,8 @@ void register_run(CLI::App& app, Runner* run) {
     bool relative = false;
   };
   auto o = std::make_shared<Opts>();
-  CLI::App* cmd = app.add_subcommand("run", "Run a scene headless, driving probes from a CSV script");
+  CLI::App* cmd =
+      app.add_subcommand("run", "Run a scene headless, driving probes from a CSV script");
   cmd->add_option("--scene", o->scene, "scene file (.pbtxt)")->required();
   cmd->add_option("--probe-script", o->script, "CSV t,probe,x,y,z (s, index, m)")->required();
   cmd->add_option("--ticks", o->ticks, "number of ticks")->capture_default_str();

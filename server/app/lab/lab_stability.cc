@@ -62,7 +62,8 @@ double omega_max(const Model& m) {
   const std::vector<Vec3> f0 = ws.force;
   std::vector<Vec3> v(m.num_nodes());
   for (int i = 0; i < m.num_nodes(); ++i)
-    v[i] = Vec3(std::sin(1.0 + i), std::cos(2.0 + 3 * i), std::sin(5.0 * i)).cwiseProduct(m.free_axes[i]);
+    v[i] = Vec3(std::sin(1.0 + i), std::cos(2.0 + 3 * i), std::sin(5.0 * i))
+               .cwiseProduct(m.free_axes[i]);
   double lambda = 0;
   for (int it = 0; it < 300; ++it) {
     double norm = 0;
@@ -88,8 +89,8 @@ double omega_max(const Model& m) {
 struct Outcome {
   bool bounded = true;
   std::uint64_t rollbacks = 0;
-  double drift = 0;  // max (E - E0) / E0 over the run: energy gained (dissipation is not drift)
-  double error = 0;  // max node position error against the reference / max displacement
+  double drift = 0;      // max (E - E0) / E0 over the run: energy gained (dissipation is not drift)
+  double error = 0;      // max node position error against the reference / max displacement
   double max_force = 0;  // N, probe cases
 };
 
@@ -193,7 +194,8 @@ void register_stability(CLI::App& app, Runner* run) {
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
       "stability", "Map where each integrator fails: time step x stiffness, bottoming, step loads");
-  cmd->add_option("--out", o->out, "output prefix: PREFIX.csv and PREFIX.png")->capture_default_str();
+  cmd->add_option("--out", o->out, "output prefix: PREFIX.csv and PREFIX.png")
+      ->capture_default_str();
   cmd->add_option("--seconds", o->seconds, "simulated time per cell, s")->capture_default_str();
   cmd->add_flag("!--no-plot", o->plot, "skip the PNG");
   cmd->callback([o, run] {
@@ -204,8 +206,10 @@ void register_stability(CLI::App& app, Runner* run) {
         std::fprintf(stderr, "conica-lab stability: cannot write %s\n", csv_path.c_str());
         return 1;
       }
-      std::fputs("case,integrator,dt_ms,stiffness_n_per_m,h_omega,bounded,rollbacks,energy_drift,"
-                 "error,max_force_n\n", csv);
+      std::fputs(
+          "case,integrator,dt_ms,stiffness_n_per_m,h_omega,bounded,rollbacks,energy_drift,"
+          "error,max_force_n\n",
+          csv);
       const Integrator kIntegrators[] = {Integrator::kSymplecticEuler, Integrator::kExplicitEuler,
                                          Integrator::kImplicitEuler};
       // 1. Release: time step x stiffness.
@@ -227,8 +231,10 @@ void register_stability(CLI::App& app, Runner* run) {
                          r.error);
           }
         }
-        std::printf("stiffness %6g N/m: omega_max %.1f rad/s, symplectic limit dt = 2/omega = "
-                    "%.3f ms\n", k, w, 2e3 / w);
+        std::printf(
+            "stiffness %6g N/m: omega_max %.1f rad/s, symplectic limit dt = 2/omega = "
+            "%.3f ms\n",
+            k, w, 2e3 / w);
       }
       // 2. Bottoming, one mass on one conical spring (K0 = 49 N/m, telescopic, L0 = 10 mm).
       //    (a) 0.1 g ramped to 0.2 Ps: the equilibrium lies in the nonlinear phase where the exact
@@ -242,8 +248,8 @@ void register_stability(CLI::App& app, Runner* run) {
         const char* name;
         double ratio, ramp, mass, cap;
       };
-      for (const Load& load : {Load{"ramp0.2Ps", 0.2, 0.5, 1e-4, 3.0},
-                               Load{"step1.5Ps", 1.5, 0.0, 1e-3, 20.0}}) {
+      for (const Load& load :
+           {Load{"ramp0.2Ps", 0.2, 0.5, 1e-4, 3.0}, Load{"step1.5Ps", 1.5, 0.0, 1e-3, 20.0}}) {
         for (bool stop : {true, false}) {
           for (double cap : {1e12, load.cap}) {
             for (Integrator integ : kIntegrators) {
@@ -252,8 +258,8 @@ void register_stability(CLI::App& app, Runner* run) {
                                                      stop, &min_frac);
               std::fprintf(csv, "bottoming_%s_cap_%s%s,%s,1,,,%d,%lu,%.4g,,%.4g\n", load.name,
                            cap > 1e11 ? "none" : (cap < 10 ? "3" : "20"), stop ? "" : "_nostop",
-                           integrator_name(integ), r.bounded, (unsigned long)r.rollbacks,
-                           min_frac, r.max_force);
+                           integrator_name(integ), r.bounded, (unsigned long)r.rollbacks, min_frac,
+                           r.max_force);
             }
           }
         }

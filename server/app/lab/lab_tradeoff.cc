@@ -52,12 +52,12 @@ struct Setting {
 
 struct Resolution {
   std::string name;
-  BodySpec spec;  // conical law as loaded
+  BodySpec spec;                 // conical law as loaded
   Vec3 press_at = Vec3::Zero();  // indentation: probe centre at first contact, m
 };
 
 struct Experiment {
-  std::string name;                 // "compression", "indentation"
+  std::string name;                     // "compression", "indentation"
   std::vector<Resolution> resolutions;  // coarse to fine; the last is the reference's
   long ticks = 0;
   double strain = 0;  // compression
@@ -77,9 +77,9 @@ struct SweepConfig {
 // Indentation path of the liver press (the viewer figure's press).
 const Vec3 kPressAt(-0.0485, 0.0716, -0.0093);
 const Vec3 kPressAxis(0, -1, 0);
-constexpr double kPressDepth = 0.01;   // m
-constexpr double kPressRamp = 0.2;     // s
-constexpr double kCompressRamp = 0.15; // s
+constexpr double kPressDepth = 0.01;    // m
+constexpr double kPressRamp = 0.2;      // s
+constexpr double kCompressRamp = 0.15;  // s
 
 Model build(const BodySpec& spec, const Setting& s, std::string* error) {
   BodySpec b = spec;
@@ -102,8 +102,10 @@ bool freeze_penalties(BodySpec* spec, std::string* error) {
   Model m;
   *error = build_model(b, &m);
   if (!error->empty()) return false;
-  for (size_t k = 0; k < spec->probes.size(); ++k) spec->probes[k].stiffness = m.probes[k].stiffness;
-  for (size_t k = 0; k < spec->planes.size(); ++k) spec->planes[k].stiffness = m.planes[k].stiffness;
+  for (size_t k = 0; k < spec->probes.size(); ++k)
+    spec->probes[k].stiffness = m.probes[k].stiffness;
+  for (size_t k = 0; k < spec->planes.size(); ++k)
+    spec->planes[k].stiffness = m.planes[k].stiffness;
   return true;
 }
 
@@ -139,9 +141,12 @@ bool make_experiments(const SweepConfig& c, std::vector<Experiment>* out, std::s
   comp.ticks = c.quick ? 100 : 200;
   comp.strain = c.strain;
   const Vec3 size(0.06, 0.06, 0.04);
-  struct Lattice { const char* name; std::array<int, 3> cells; };
-  std::vector<Lattice> lattices = {{"20mm", {3, 3, 2}}, {"10mm", {6, 6, 4}},
-                                   {"6.7mm", {9, 9, 6}}, {"5mm", {12, 12, 8}}};
+  struct Lattice {
+    const char* name;
+    std::array<int, 3> cells;
+  };
+  std::vector<Lattice> lattices = {
+      {"20mm", {3, 3, 2}}, {"10mm", {6, 6, 4}}, {"6.7mm", {9, 9, 6}}, {"5mm", {12, 12, 8}}};
   if (c.quick) lattices = {{"20mm", {3, 3, 2}}, {"10mm", {6, 6, 4}}};
   for (const Lattice& l : lattices)
     comp.resolutions.push_back({l.name, compression_body(material, size, l.cells)});
@@ -166,8 +171,7 @@ bool make_experiments(const SweepConfig& c, std::vector<Experiment>* out, std::s
     const std::string coarse_path = c.coarse_liver;
     auto mesh = io::read_mesh(coarse_path);
     if (!mesh) {
-      std::fprintf(stderr, "conica-lab tradeoff: coarse liver skipped: %s\n",
-                   mesh.error().c_str());
+      std::fprintf(stderr, "conica-lab tradeoff: coarse liver skipped: %s\n", mesh.error().c_str());
     } else {
       BodySpec coarse = fine;
       coarse.mesh = mesh.value().mesh;
@@ -181,21 +185,23 @@ bool make_experiments(const SweepConfig& c, std::vector<Experiment>* out, std::s
       c0 /= static_cast<double>(coarse.mesh.nodes.size());
       for (Vec3& x : coarse.mesh.nodes) x = c0 + s * (x - c0);
       if (c.verbose)
-        std::printf("coarse liver %s: %zu nodes mapped onto %zu by principal axes, mean node "
-                    "distance %.2f mm, volume scaled by %.3f to %.3g l\n",
-                    coarse_path.c_str(), coarse.mesh.nodes.size(), fine.mesh.nodes.size(),
-                    1e3 * d, s * s * s, 1e3 * v_fine);
+        std::printf(
+            "coarse liver %s: %zu nodes mapped onto %zu by principal axes, mean node "
+            "distance %.2f mm, volume scaled by %.3f to %.3g l\n",
+            coarse_path.c_str(), coarse.mesh.nodes.size(), fine.mesh.nodes.size(), 1e3 * d,
+            s * s * s, 1e3 * v_fine);
       ind.resolutions.push_back({std::filesystem::path(coarse_path).stem().string(), coarse});
     }
   }
-  ind.resolutions.push_back(
-      {std::filesystem::path(liver.value().mesh_path).stem().string(), fine});
+  ind.resolutions.push_back({std::filesystem::path(liver.value().mesh_path).stem().string(), fine});
   // Each mesh is pressed from where the probe first touches it on the press line.
   for (Resolution& r : ind.resolutions) {
     r.press_at = first_touch(r.spec.mesh.nodes, kPressAt, kPressAxis, r.spec.probes[0].radius);
     if (c.verbose)
-      std::printf("indentation %s: first contact %.2f mm along the press line from the nominal "
-                  "start\n", r.name.c_str(), 1e3 * (r.press_at - kPressAt).dot(kPressAxis));
+      std::printf(
+          "indentation %s: first contact %.2f mm along the press line from the nominal "
+          "start\n",
+          r.name.c_str(), 1e3 * (r.press_at - kPressAt).dot(kPressAxis));
   }
   out->push_back(std::move(ind));
   return true;
@@ -215,8 +221,10 @@ bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, st
   std::vector<Experiment> experiments;
   if (!make_experiments(c, &experiments, error)) return false;
   std::vector<Setting> settings;
-  const std::vector<int> explicit_substeps = quick ? std::vector<int>{1, 2} : std::vector<int>{1, 2, 4, 8};
-  const std::vector<int> implicit_substeps = quick ? std::vector<int>{1} : std::vector<int>{1, 2, 4};
+  const std::vector<int> explicit_substeps =
+      quick ? std::vector<int>{1, 2} : std::vector<int>{1, 2, 4, 8};
+  const std::vector<int> implicit_substeps =
+      quick ? std::vector<int>{1} : std::vector<int>{1, 2, 4};
   for (int n : explicit_substeps) settings.push_back({Integrator::kSymplecticEuler, 0, 0, n});
   for (int n : explicit_substeps) settings.push_back({Integrator::kExplicitEuler, 0, 0, n});
   for (int n : implicit_substeps) settings.push_back({Integrator::kImplicitEuler, 1, 20, n});
@@ -245,10 +253,11 @@ bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, st
         // How converged the reference is: the same run at half its substeps.
         const Setting half{Integrator::kSymplecticEuler, 0, 0, c.reference_substeps / 2};
         const Trace h = run_experiment(e, e.resolutions.back(), build(ref_spec, half, error));
-        std::printf("%s, %s: reference %s symplectic x%d, peak force %.4g N; x%d differs by "
-                    "%.3g %%",
-                    e.name.c_str(), law, e.resolutions.back().name.c_str(), c.reference_substeps,
-                    peak, c.reference_substeps / 2, 100 * force_error(h.force, ref.force));
+        std::printf(
+            "%s, %s: reference %s symplectic x%d, peak force %.4g N; x%d differs by "
+            "%.3g %%",
+            e.name.c_str(), law, e.resolutions.back().name.c_str(), c.reference_substeps, peak,
+            c.reference_substeps / 2, 100 * force_error(h.force, ref.force));
         if (!ref_model.probes.empty())
           std::printf("; probe penalty %.4g N/m per node", ref_model.probes[0].stiffness);
         std::printf("\n");
@@ -279,11 +288,12 @@ bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, st
           for (const Vec3& f : t.force) p = std::max(p, f.norm());
           r.stable = t.rollbacks == 0 && t.finite && p <= 2 * peak;
           if (verbose)
-            std::printf("  %-11s %-7s %5d nodes %-10s %dx%-3d x%d %-7s %9.1f us  error %9.3g %%"
-                        "  rms %9.3g %%%s\n",
-                        r.scene.c_str(), r.resolution.c_str(), r.nodes, r.integrator.c_str(),
-                        r.newton, r.cg, r.substeps, law, r.step_us, 100 * r.error,
-                        100 * r.rms_error, r.stable ? "" : "  UNSTABLE");
+            std::printf(
+                "  %-11s %-7s %5d nodes %-10s %dx%-3d x%d %-7s %9.1f us  error %9.3g %%"
+                "  rms %9.3g %%%s\n",
+                r.scene.c_str(), r.resolution.c_str(), r.nodes, r.integrator.c_str(), r.newton,
+                r.cg, r.substeps, law, r.step_us, 100 * r.error, 100 * r.rms_error,
+                r.stable ? "" : "  UNSTABLE");
           std::fflush(stdout);
           rows->push_back(r);
         }
@@ -307,7 +317,8 @@ void register_tradeoff(CLI::App& app, Runner* run) {
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
       "tradeoff", "Speed against accuracy: integrator x substeps x law x resolution, Pareto chart");
-  cmd->add_option("--out", o->out, "output prefix: PREFIX.csv and PREFIX.png")->capture_default_str();
+  cmd->add_option("--out", o->out, "output prefix: PREFIX.csv and PREFIX.png")
+      ->capture_default_str();
   cmd->add_flag("--quick", o->quick, "a small sweep (2 lattices, the liver, fewer settings)");
   cmd->add_flag("!--no-plot", o->plot, "skip the PNG");
   cmd->add_option("--probe-stiffness", o->probe_stiffness,
@@ -355,8 +366,10 @@ void register_tradeoff(CLI::App& app, Runner* run) {
             const TradeoffRow& r = sub[i];
             std::printf("  %-7s %5d nodes  %-10s", r.resolution.c_str(), r.nodes,
                         r.integrator.c_str());
-            if (r.newton > 0) std::printf(" %dx%-3d", r.newton, r.cg);
-            else std::printf("       ");
+            if (r.newton > 0)
+              std::printf(" %dx%-3d", r.newton, r.cg);
+            else
+              std::printf("       ");
             std::printf(" x%d  %9.1f us  %8.3g %% (max %.3g %%)\n", r.substeps, r.step_us,
                         100 * front_error(r), 100 * r.error);
           }

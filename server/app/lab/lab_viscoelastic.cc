@@ -97,7 +97,8 @@ void register_viscoelastic(CLI::App& app, Runner* run) {
         return displacement_program(
             m,
             [&, Ua](double t) {
-              return t < t_cyc ? ramp(t, tr, 2 * Ua) : 2 * Ua + Ua * (1 - std::cos(w * (t - t_cyc)));
+              return t < t_cyc ? ramp(t, tr, 2 * Ua)
+                               : 2 * Ua + Ua * (1 - std::cos(w * (t - t_cyc)));
             },
             t_cyc + 3 * period);
       };
@@ -145,12 +146,13 @@ void register_viscoelastic(CLI::App& app, Runner* run) {
       }
       for (size_t i = 0; i < cr.time.size(); ++i) {
         const double t = cr.time[i];
-        cr_sls[i] = 1e3 * (t < tr ? std::nan("")
-                                  : u_inf_sls - (u_inf_sls - u_inst_sls) * std::exp(-(t - tr) / tau_c));
+        cr_sls[i] =
+            1e3 * (t < tr ? std::nan("")
+                          : u_inf_sls - (u_inf_sls - u_inst_sls) * std::exp(-(t - tr) / tau_c));
         mm[i] = 1e3 * cr.displacement[i];
       }
-      std::vector<double> hu(hyc.time.size()), hu2(hy2c.time.size()),
-          nan2(hy2c.time.size(), NAN), nan1(hyc.time.size(), NAN);
+      std::vector<double> hu(hyc.time.size()), hu2(hy2c.time.size()), nan2(hy2c.time.size(), NAN),
+          nan1(hyc.time.size(), NAN);
       for (size_t i = 0; i < hu.size(); ++i) hu[i] = 1e3 * hyc.displacement[i];
       for (size_t i = 0; i < hu2.size(); ++i) hu2[i] = 1e3 * hy2c.displacement[i];
       // the two loops in one file: rows of the small loop, then of the large one
@@ -160,26 +162,26 @@ void register_viscoelastic(CLI::App& app, Runner* run) {
       lf2.insert(lf2.end(), hy2c.force.begin(), hy2c.force.end());
       lt.insert(lt.end(), hy2c.time.begin(), hy2c.time.end());
       const std::string P = o->out;
-      bool ok = write(P + "-relaxation.csv", "time_s,force_N,sls_N", {rel.time, rel.force, rel_sls}) &&
-                write(P + "-creep.csv", "time_s,displacement_mm,sls_mm,force_N",
-                      {cr.time, mm, cr_sls, cr.force}) &&
-                write(P + "-hysteresis.csv", "displacement_mm,force_small_N,force_large_N,time_s",
-                      {lu, lf1, lf2, lt});
+      bool ok =
+          write(P + "-relaxation.csv", "time_s,force_N,sls_N", {rel.time, rel.force, rel_sls}) &&
+          write(P + "-creep.csv", "time_s,displacement_mm,sls_mm,force_N",
+                {cr.time, mm, cr_sls, cr.force}) &&
+          write(P + "-hysteresis.csv", "displacement_mm,force_small_N,force_large_N,time_s",
+                {lu, lf1, lf2, lt});
       char s[2048];
-      std::snprintf(
-          s, sizeof s,
-          "quantity,model,standard_linear_solid\n"
-          "relaxation time (s),%.6g,%.6g\n"
-          "relaxation peak force (N),%.6g,%.6g\n"
-          "relaxation long-term force (N),%.6g,%.6g\n"
-          "retardation time (s),%.6g,%.6g\n"
-          "creep travel at end of load ramp (mm; SLS: instantaneous),%.6g,%.6g\n"
-          "creep travel at end of hold (mm),%.6g,%.6g\n"
-          "loop energy at strain %g (mJ),%.6g,%.6g\n"
-          "loop energy at strain %g (mJ),%.6g,\n",
-          tau_rel, tau, f_peak, f_peak_sls, f_inf, k_e * u0, tau_cr, tau_c, 1e3 * u_first,
-          1e3 * u_inst_sls, 1e3 * u_end, 1e3 * u_end_sls, o->strain, 1e3 * area, 1e3 * area_sls,
-          o->loop_strain, 1e3 * area2);
+      std::snprintf(s, sizeof s,
+                    "quantity,model,standard_linear_solid\n"
+                    "relaxation time (s),%.6g,%.6g\n"
+                    "relaxation peak force (N),%.6g,%.6g\n"
+                    "relaxation long-term force (N),%.6g,%.6g\n"
+                    "retardation time (s),%.6g,%.6g\n"
+                    "creep travel at end of load ramp (mm; SLS: instantaneous),%.6g,%.6g\n"
+                    "creep travel at end of hold (mm),%.6g,%.6g\n"
+                    "loop energy at strain %g (mJ),%.6g,%.6g\n"
+                    "loop energy at strain %g (mJ),%.6g,\n",
+                    tau_rel, tau, f_peak, f_peak_sls, f_inf, k_e * u0, tau_cr, tau_c, 1e3 * u_first,
+                    1e3 * u_inst_sls, 1e3 * u_end, 1e3 * u_end_sls, o->strain, 1e3 * area,
+                    1e3 * area_sls, o->loop_strain, 1e3 * area2);
       std::ofstream(P + "-summary.csv") << s;
       std::printf("%s: height %.4g mm, k_m / K0 = %.4g, tau = %.4g s; body k_e = %.6g N/m\n%s",
                   o->scene.c_str(), H * 1e3, q, tau, k_e, s);
@@ -189,18 +191,24 @@ void register_viscoelastic(CLI::App& app, Runner* run) {
       }
       if (o->plot) {
         int rc = run_plot_script(
-            "plot_curves", "--out '" + P + "-relaxation.png' --title 'Force relaxation (hold at "
-                               "strain " + std::to_string(o->strain).substr(0, 4) +
-                               ")' --xlabel 'time (s)' --ylabel 'force (N)' --columns force_N,sls_N "
-                               "--labels 'model,standard linear solid' --styles 'b-,k:' '" + P +
-                               "-relaxation.csv'");
+            "plot_curves",
+            "--out '" + P +
+                "-relaxation.png' --title 'Force relaxation (hold at "
+                "strain " +
+                std::to_string(o->strain).substr(0, 4) +
+                ")' --xlabel 'time (s)' --ylabel 'force (N)' --columns force_N,sls_N "
+                "--labels 'model,standard linear solid' --styles 'b-,k:' '" +
+                P + "-relaxation.csv'");
+        rc |= run_plot_script("plot_curves",
+                              "--out '" + P +
+                                  "-creep.png' --title 'Creep under constant load' "
+                                  "--xlabel 'time (s)' --ylabel 'plate travel (mm)' --columns "
+                                  "displacement_mm,sls_mm --labels 'model,standard linear solid' "
+                                  "--styles 'b-,k:' '" +
+                                  P + "-creep.csv'");
         rc |= run_plot_script(
-            "plot_curves", "--out '" + P + "-creep.png' --title 'Creep under constant load' "
-                               "--xlabel 'time (s)' --ylabel 'plate travel (mm)' --columns "
-                               "displacement_mm,sls_mm --labels 'model,standard linear solid' "
-                               "--styles 'b-,k:' '" + P + "-creep.csv'");
-        rc |= run_plot_script(
-            "plot_curves", "--out '" + P + "-hysteresis.png' --title 'Hysteresis, 3 cycles at "
+            "plot_curves", "--out '" + P +
+                               "-hysteresis.png' --title 'Hysteresis, 3 cycles at "
                                "omega tau = 1' --xlabel 'plate travel (mm)' --ylabel 'force (N)' "
                                "--columns force_small_N,force_large_N --labels 'strain " +
                                std::to_string(o->strain).substr(0, 4) + ",strain " +
