@@ -30,43 +30,75 @@ Mat3 symmetric(const double s[6]) {
   return m;
 }
 
-// Accumulates the layer's integrand at Gauss points of one triangle, in sums local to it that
-// flush() adds to the tool's totals and the nodes once per triangle.
-struct Accumulator {
-  const ContactLayer& layer;
+// What a tool does to a surface point y inside it: penetration g, the unit direction u the point
+// is pushed along, and the curvature 1 / r of the tool's surface there (0 for a flat face), whose
+// term p / r (I - u u^T) the tool's stiffness carries.
+struct Penetration {
+  double g = 0;
+  Vec3 u = Vec3::Zero();
+  double curvature = 0;  // 1/m
+};
+
+// A sphere of radius R around c: g = R - |y - c|, pushed radially.
+struct SphereTool {
   const Vec3& c;
   double R;
+  bool at(const Vec3& y, Penetration* pen) const {
+    const Vec3 d = y - c;
+    const double r2 = d.squaredNorm();
+    if (!(r2 < R * R) || !(r2 > 0)) return false;
+    const double r = std::sqrt(r2);
+    *pen = {R - r, d / r, 1 / r};
+    return true;
+  }
+};
+
+// A punch's face centred at c pushing along unit a: g = -(y - c).a behind it, pushed along a.
+struct PunchTool {
+  const Vec3& c;
+  const Vec3& axis;
+  bool at(const Vec3& y, Penetration* pen) const {
+    const double g = -(y - c).dot(axis);
+    if (!(g > 0)) return false;
+    *pen = {g, axis, 0};
+    return true;
+  }
+};
+
+// Accumulates the layer's integrand at Gauss points of one triangle, in sums local to it that
+// flush() adds to the tool's totals and the nodes once per triangle.
+template <typename Tool>
+struct Accumulator {
+  const ContactLayer& layer;
+  const Tool& tool;
   ToolContact* out;
-  Vec3* f[3];  // node forces (null: not wanted)
-  Mat3* b[3];  // node blocks (null: not wanted)
+  Vec3* f[3];    // node forces (null: not wanted)
+  Mat3* b[3];    // node blocks (null: not wanted)
   bool touched = false;
   double energy = 0, s0 = 0, depth = 0;
   Vec3 force = Vec3::Zero();
-  double S1[6] = {}, S2[6] = {};  // sum w (-p' - p / r) u u^T and sum w p' u u^T
+  double S1[6] = {}, S2[6] = {};  // sum w (-p' - p k) u u^T and sum w p' u u^T (k: curvature)
   Vec3 fl[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
   double bl[3][6] = {};
 
   // Point y of barycentric coordinates l, area weight w (m^2).
   void add(const Vec3& y, const double l[3], double w) {
-    const Vec3 d = y - c;
-    const double r2 = d.squaredNorm();
-    if (!(r2 < R * R) || !(r2 > 0)) return;
-    const double r = std::sqrt(r2);
-    const double g = R - r;
+    Penetration pen;
+    if (!tool.at(y, &pen)) return;
     double p, dp, psi;
-    layer.eval(g, &p, &dp, &psi);
-    const Vec3 u = d / r;
+    layer.eval(pen.g, &p, &dp, &psi);
+    const Vec3& u = pen.u;
     const double uu[6] = {u.x() * u.x(), u.y() * u.y(), u.z() * u.z(),
                           u.x() * u.y(), u.x() * u.z(), u.y() * u.z()};
     energy += w * psi;
     force -= (w * p) * u;
-    s0 += w * p / r;
-    const double c1 = w * (-dp - p / r), c2 = w * dp;
+    s0 += w * p * pen.curvature;
+    const double c1 = w * (-dp - p * pen.curvature), c2 = w * dp;
     for (int k = 0; k < 6; ++k) {
       S1[k] += c1 * uu[k];
       S2[k] += c2 * uu[k];
     }
-    depth = std::max(depth, g);
+    depth = std::max(depth, pen.g);
     touched = true;
     for (int a = 0; a < 3; ++a) {
       if (f[a]) fl[a] += (w * l[a] * p) * u;
@@ -87,36 +119,6 @@ struct Accumulator {
     for (int a = 0; a < 3; ++a) {
       if (f[a]) *f[a] += fl[a];
       if (b[a]) *b[a] += symmetric(bl[a]);
-    }
-  }
-};
-
-// The punch's integrand: penetration g = -(y - c).a behind its face, pushed along a.
-struct PunchAccumulator {
-  const ContactLayer& layer;
-  const Vec3& c;
-  const Vec3& axis;
-  double R;
-  ToolContact* out;
-  Vec3* f[3];
-  Mat3* b[3];
-  bool touched = false;
-
-  void add(const Vec3& y, const double l[3], double w) {
-    const double g = -(y - c).dot(axis);
-    if (!(g > 0)) return;
-    double p, dp, psi;
-    layer.eval(g, &p, &dp, &psi);
-    const Mat3 aa = axis * axis.transpose();
-    out->energy += w * psi;
-    out->force -= w * p * axis;
-    out->stiffness -= w * dp * aa;
-    out->stiffness_psd -= w * dp * aa;
-    out->depth = std::max(out->depth, g);
-    touched = true;
-    for (int k = 0; k < 3; ++k) {
-      if (f[k]) *f[k] += (w * l[k] * p) * axis;
-      if (b[k]) *b[k] += (w * l[k] * dp) * aa;
     }
   }
 };
@@ -212,22 +214,24 @@ void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&&
 
 // The sphere (centre c, radius R) against triangle (p0, p1, p2): the integral over the part of
 // the triangle inside the ball, the disc the ball cuts from the triangle's plane.
-void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator& acc) {
+void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2,
+                     Accumulator<SphereTool>& acc) {
   const Vec3 nv = (p1 - p0).cross(p2 - p0);
   const double area2 = nv.norm();
   if (!(area2 > 0)) return;
   const Vec3 n = nv / area2;
-  const double R = acc.R;
-  const double z = (acc.c - p0).dot(n);
+  const Vec3& c = acc.tool.c;
+  const double R = acc.tool.R;
+  const double z = (c - p0).dot(n);
   if (!(std::abs(z) < R)) return;
-  const Vec3 F = acc.c - z * n;  // the disc's centre in the triangle's plane
+  const Vec3 F = c - z * n;  // the disc's centre in the triangle's plane
   const Vec3 Q[3] = {p0 - F, p1 - F, p2 - F};
   disc_triangle(Q, n, std::sqrt(R * R - z * z), 1.0, [&](const double* l, double w) {
     acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, l, w);
   });
   if (acc.touched) {  // the exact depth: R less the distance to the triangle
     Vec3 b;
-    const double d = (closest_on_triangle(acc.c, p0, p1, p2, &b) - acc.c).norm();
+    const double d = (closest_on_triangle(c, p0, p1, p2, &b) - c).norm();
     acc.depth = std::max(acc.depth, R - d);
   }
   acc.flush();
@@ -237,18 +241,21 @@ void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator
 // footprint is the disc of radius R about the axis in the face plane; the triangle is projected
 // along the axis onto that plane (an affine map: barycentric coordinates carry over, areas scale
 // by the ratio of the real to the projected area).
-void punch_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, PunchAccumulator& acc) {
-  const Vec3& ax = acc.axis;
+void punch_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, double R,
+                    Accumulator<PunchTool>& acc) {
+  const Vec3& ax = acc.tool.axis;
+  const Vec3& c = acc.tool.c;
   const double area2 = (p1 - p0).cross(p2 - p0).norm();
   if (!(area2 > 0)) return;
   const Mat3 P = Mat3::Identity() - ax * ax.transpose();
-  const Vec3 Q[3] = {P * (p0 - acc.c), P * (p1 - acc.c), P * (p2 - acc.c)};
+  const Vec3 Q[3] = {P * (p0 - c), P * (p1 - c), P * (p2 - c)};
   const Vec3 pn = (Q[1] - Q[0]).cross(Q[2] - Q[0]);
   const double proj_area2 = pn.norm();
   if (!(proj_area2 > 1e-12 * area2)) return;  // the triangle is edge-on to the punch
-  disc_triangle(Q, pn / proj_area2, acc.R, area2 / proj_area2, [&](const double* l, double w) {
+  disc_triangle(Q, pn / proj_area2, R, area2 / proj_area2, [&](const double* l, double w) {
     acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, l, w);
   });
+  acc.flush();
 }
 
 // Closest point to p on triangle (a, b, c) (Ericson, Real-Time Collision Detection 5.1.5), with
@@ -314,11 +321,38 @@ double segment_triangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3&
   return t >= 0 && t <= 1 ? t : 2;
 }
 
-double probe_radius(const Model& m, int k, const ProbeState& p) {
-  return p.radius > 0 ? p.radius : m.probes[k].radius;
+// A triangle's centroid and the largest centroid-vertex distance (m): its bounding sphere.
+double triangle_bound(const Vec3& p0, const Vec3& p1, const Vec3& p2, Vec3* center) {
+  *center = (p0 + p1 + p2) / 3;
+  return std::sqrt(std::max({(p0 - *center).squaredNorm(), (p1 - *center).squaredNorm(),
+                             (p2 - *center).squaredNorm()}));
+}
+
+// Surface triangle t's frame at positions x: its edges from node 0 and its unit normal.
+Mat3 triangle_frame(const Model& m, const std::vector<Vec3>& x, int t) {
+  const auto& f = m.surface[t];
+  Mat3 E;
+  E.col(0) = x[f[1]] - x[f[0]];
+  E.col(1) = x[f[2]] - x[f[0]];
+  E.col(2) = E.col(0).cross(E.col(1)).normalized();
+  return E;
+}
+
+// A point riding on the surface: the point of barycentric coordinates `bary` on triangle t plus
+// `offset` in the triangle's frame, at positions x (the proxy's anchor, the friction's stick
+// point).
+Vec3 carried_point(const Model& m, const std::vector<Vec3>& x, int t, const Vec3& bary,
+                   const Vec3& offset) {
+  const auto& f = m.surface[t];
+  return bary[0] * x[f[0]] + bary[1] * x[f[1]] + bary[2] * x[f[2]] +
+         triangle_frame(m, x, t) * offset;
 }
 
 }  // namespace
+
+double probe_radius(const Model& m, int k, const ProbeState& p) {
+  return p.radius > 0 ? p.radius : m.probes[k].radius;
+}
 
 double coupling_stiffness(const Model& m, int k, double R) {
   const double kvc = m.probes[k].coupling;
@@ -393,19 +427,20 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
     bool touched;
     if (spec.shape == ToolShape::kSphere) {
       // Quick reject: the triangle's bounding sphere misses the ball.
-      const Vec3 cen = (p0 + p1 + p2) / 3;
-      const double rad = std::sqrt(
-          std::max({(p0 - cen).squaredNorm(), (p1 - cen).squaredNorm(), (p2 - cen).squaredNorm()}));
+      Vec3 cen;
+      const double rad = triangle_bound(p0, p1, p2, &cen);
       if ((cen - pose).squaredNorm() >= (R + rad) * (R + rad)) continue;
-      Accumulator acc{layer, pose, R, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
+      const SphereTool tool{pose, R};
+      Accumulator<SphereTool> acc{layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
       sphere_triangle(p0, p1, p2, acc);
       touched = acc.touched;
     } else {
-      // Quick reject: every vertex in front of the face, or the triangle far from the axis.
+      // Quick reject: every vertex in front of the face.
       if ((p0 - pose).dot(axis) >= 0 && (p1 - pose).dot(axis) >= 0 && (p2 - pose).dot(axis) >= 0)
         continue;
-      PunchAccumulator acc{layer, pose, axis, R, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
-      punch_triangle(p0, p1, p2, acc);
+      const PunchTool tool{pose, axis};
+      Accumulator<PunchTool> acc{layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
+      punch_triangle(p0, p1, p2, R, acc);
       touched = acc.touched;
     }
     out->faces += touched;
@@ -416,14 +451,9 @@ void friction_forces(const Model& m, int k, const ProbeState& p, const std::vect
                      Vec3* node_force, Mat3* node_block) {
   if (!(m.probes[k].friction > 0) || p.stick < 0 || !(p.friction_limit > 0)) return;
   const auto& f = m.surface[p.stick];
-  Mat3 E;
-  E.col(0) = x[f[1]] - x[f[0]];
-  E.col(1) = x[f[2]] - x[f[0]];
-  E.col(2) = E.col(0).cross(E.col(1)).normalized();
   const Vec3& b = p.stick_bary;
-  const Vec3 xs = b[0] * x[f[0]] + b[1] * x[f[1]] + b[2] * x[f[2]] + E * p.stick_offset;
-  const double R = p.radius > 0 ? p.radius : m.probes[k].radius;
-  const double kt = coupling_stiffness(m, k, R);
+  const Vec3 xs = carried_point(m, x, p.stick, b, p.stick_offset);
+  const double kt = coupling_stiffness(m, k, probe_radius(m, k, p));
   const Mat3 P = Mat3::Identity() - p.contact_normal * p.contact_normal.transpose();
   Vec3 fb = kt * (P * (p.proxy - xs));
   if (fb.norm() > p.friction_limit) fb *= p.friction_limit / fb.norm();
@@ -491,19 +521,6 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
     }
     return at;
   };
-  auto tri_normal = [&](int t) {
-    const auto& f = m.surface[t];
-    return Vec3((x[f[1]] - x[f[0]]).cross(x[f[2]] - x[f[0]]).normalized());
-  };
-  // The triangle's frame: its edges from node 0 and its unit normal.
-  auto tri_frame = [&](int t) {
-    const auto& f = m.surface[t];
-    Mat3 E;
-    E.col(0) = x[f[1]] - x[f[0]];
-    E.col(1) = x[f[2]] - x[f[0]];
-    E.col(2) = E.col(0).cross(E.col(1)).normalized();
-    return E;
-  };
   if (!p->proxy_placed) {
     // A tool just placed starts where it touches the surface at most: outside the body, backed
     // off along the nearest face's normal until it no longer overlaps it, so that it sinks in at
@@ -517,16 +534,14 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
       const double dist = (target - at).norm();
       // Away from the surface: along the nearest face's normal from inside, else straight away
       // from the nearest surface point.
-      const Vec3 away = inside || !(dist > 0) ? tri_normal(t) : Vec3((target - at) / dist);
+      const Vec3 away =
+          inside || !(dist > 0) ? Vec3(triangle_frame(m, x, t).col(2)) : Vec3((target - at) / dist);
       const double clear = std::max(spec_is_sphere ? R : 0.0, 1e-3 * R);
       if (inside || dist < clear) start = at + clear * away;
     }
     p->proxy_placed = true;
   } else if (p->anchor >= 0 && p->anchor < nt) {
-    const auto& f = m.surface[p->anchor];
-    const Vec3& b = p->anchor_bary;
-    const Vec3 at = b[0] * x[f[0]] + b[1] * x[f[1]] + b[2] * x[f[2]];
-    start = at + tri_frame(p->anchor) * p->anchor_offset;
+    start = carried_point(m, x, p->anchor, p->anchor_bary, p->anchor_offset);
   }
   // Candidates: triangles whose bounding sphere meets the capsule from start to target, widened
   // by the tool's reach.
@@ -537,9 +552,8 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
     for (int t = 0; t < nt; ++t) {
       const auto& f = m.surface[t];
       const Vec3 &p0 = x[f[0]], &p1 = x[f[1]], &p2 = x[f[2]];
-      const Vec3 cen = (p0 + p1 + p2) / 3;
-      const double rad = std::sqrt(
-          std::max({(p0 - cen).squaredNorm(), (p1 - cen).squaredNorm(), (p2 - cen).squaredNorm()}));
+      Vec3 cen;
+      const double rad = triangle_bound(p0, p1, p2, &cen);
       const double s = seg2 > 0 ? std::clamp((cen - start).dot(seg) / seg2, 0.0, 1.0) : 0.0;
       const double lim = reach + rad;
       if ((cen - (start + s * seg)).squaredNorm() < lim * lim) candidates->push_back(t);
@@ -547,6 +561,13 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
   }
   const int* cand = candidates ? candidates->data() : nullptr;
   const int nc = candidates ? static_cast<int>(candidates->size()) : nt;
+  // The point riding on the surface nearest y among the listed triangles (triangle, barycentric
+  // coordinates, offset in its frame), for the anchor and the stick point.
+  auto attach = [&](const Vec3& y, int* tri, Vec3* bary, Vec3* offset) {
+    const Vec3 near = nearest(y, cand, nc, tri, bary);
+    if (*tri >= 0) *offset = triangle_frame(m, x, *tri).inverse() * (y - near);
+    return near;
+  };
   // The first crossing of the reference point's move with the pose a -> b with the surface
   // (parameter in [0, 1], or 2 when none). The reference point stays out of the body: the
   // sphere's centre; for a punch, the point one radius behind its face, inside the punch.
@@ -565,7 +586,6 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
   // One update sinks the tool by at most kProxyDepthRate R further into the surface it sees: a
   // device that jumps deep is followed over a few ticks instead of striking the surface at once.
   const double g_limit = std::min(g_stop, c.depth + kProxyDepthRate * R);
-  double phi = 0.5 * kvc * (at - target).squaredNorm() + c.energy;
   // Coulomb friction (probe friction mu > 0): a tangential spring of stiffness k_vc from the
   // proxy to its stick point x_s (carried by the surface like the proxy), energy
   // k_vc / 2 |P (x - x_s)|^2 with P the projector off the contact normal n; when its force would
@@ -624,11 +644,8 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
     P = Mat3::Identity() - n * n.transpose();
     // The stick point: carried from the last update, or where the tool first touched.
     xs = at;
-    if (p->stick >= 0 && p->stick < nt) {
-      const auto& f = m.surface[p->stick];
-      const Vec3& b = p->stick_bary;
-      xs = b[0] * x[f[0]] + b[1] * x[f[1]] + b[2] * x[f[2]] + tri_frame(p->stick) * p->stick_offset;
-    }
+    if (p->stick >= 0 && p->stick < nt)
+      xs = carried_point(m, x, p->stick, p->stick_bary, p->stick_offset);
     newton(at, c);
     Vec3 n_now = n;
     double limit = mu * std::abs(c.force.dot(n));
@@ -654,14 +671,8 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
     p->contact_normal = n_now;
     p->friction_limit = limit;
     // Store the stick point on the surface for the next update and the contact stage.
-    int t = -1;
-    Vec3 b;
-    const Vec3 near = nearest(xs, cand, nc, &t, &b);
-    p->stick = t;
-    if (t >= 0) {
-      p->stick_bary = b;
-      p->stick_offset = tri_frame(t).inverse() * (xs - near);
-    }
+    p->stick = -1;
+    attach(xs, &p->stick, &p->stick_bary, &p->stick_offset);
   } else {
     p->stick = -1;
     p->friction_limit = 0;
@@ -680,12 +691,12 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
   p->anchor = -1;
   if (nc > 0) {
     int t = -1;
-    Vec3 b;
-    const Vec3 near = nearest(at, cand, nc, &t, &b);
+    Vec3 b, offset;
+    const Vec3 near = attach(at, &t, &b, &offset);
     if (t >= 0 && (near - at).norm() < reach) {
       p->anchor = t;
       p->anchor_bary = b;
-      p->anchor_offset = tri_frame(t).inverse() * (at - near);
+      p->anchor_offset = offset;
     }
   }
 }

@@ -129,6 +129,9 @@ void tool_contact(const Model& model, int probe, double radius, const Vec3& pose
 void update_proxy(const Model& model, int k, const std::vector<Vec3>& x,
                   std::vector<int>* candidates, ProbeState* probe);
 
+// Probe k's tool radius (m): the live one in its state, else the model's.
+double probe_radius(const Model& model, int k, const ProbeState& probe);
+
 // The virtual coupling of probe k for a tool of radius R (N/m).
 double coupling_stiffness(const Model& model, int probe, double radius);
 

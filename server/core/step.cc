@@ -417,30 +417,33 @@ void list_contact_node(Workspace& ws, int i) {
 
 // A probe with the node contact law (step.h): every node inside its sphere, or the listed ones
 // only (`nodes`).
-void node_probe_forces(const Model& m, State& s, Workspace& ws, int q, bool with_jacobian,
-                       const std::vector<int>* nodes) {
+// The node law of probe k at `center` against positions x, every node or the listed ones
+// (`nodes`): fills probe's force, stiffness and contacts; with a workspace also adds the nodes'
+// forces to ws->force and, with the Jacobian, their scaled normals to ws->contact_n.
+void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
+                        ProbeState* p, Workspace* ws = nullptr, bool with_jacobian = false,
+                        const std::vector<int>* nodes = nullptr) {
   const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
   const double h = detail::substep_of(m);
-  ProbeState& p = s.probes[q];
-  p.force.setZero();
-  p.stiffness.setZero();
-  p.contacts = 0;
-  if (!p.active) return;
-  const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
-  const double kc = m.probes[q].stiffness;
+  p->force.setZero();
+  p->stiffness.setZero();
+  p->contacts = 0;
+  const double R = probe_radius(m, k, *p);
+  const double kc = m.probes[k].stiffness;
   for (int n = 0; n < nn; ++n) {
     const int i = nodes ? (*nodes)[n] : n;
     Vec3 f, dir;
     Mat3 dfdc;
-    if (!node_contact(s.x[i], m.normal[i], p.center, R, kc, &f, &dfdc, &dir)) continue;
-    ws.force[i] += f;
-    p.force -= f;
-    p.stiffness += dfdc;
-    ++p.contacts;
+    if (!node_contact(x[i], m.normal[i], center, R, kc, &f, &dfdc, &dir)) continue;
+    p->force -= f;
+    p->stiffness += dfdc;
+    ++p->contacts;
+    if (!ws) continue;
+    ws->force[i] += f;
     // Jacobian h^2 k n n^T stored as a scaled direction (two probes on one node: approximate).
     if (with_jacobian && m.fixed[i] != 7) {
-      ws.contact_n[i] += std::sqrt(h * h * kc) * dir;
-      list_contact_node(ws, i);
+      ws->contact_n[i] += std::sqrt(h * h * kc) * dir;
+      list_contact_node(*ws, i);
     }
   }
 }
@@ -463,14 +466,21 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
   ws.num_contact_nodes = 0;
   for (size_t q = 0; q < m.probes.size(); ++q) {
     if (m.probes[q].contact == ContactModel::kNodes) {
-      node_probe_forces(m, s, ws, static_cast<int>(q), with_jacobian, nodes);
+      ProbeState& p = s.probes[q];
+      if (p.active) {
+        node_probe_contact(m, s.x, static_cast<int>(q), p.center, &p, &ws, with_jacobian, nodes);
+      } else {
+        p.force.setZero();
+        p.stiffness.setZero();
+        p.contacts = 0;
+      }
       continue;
     }
     const ProbeState& p = s.probes[q];
     if (!p.active || !p.proxy_placed) continue;
     const std::vector<int>& cand = ws.probe_candidates[q];
     ToolContact c;
-    tool_contact(m, static_cast<int>(q), p.radius > 0 ? p.radius : m.probes[q].radius, p.proxy, s.x,
+    tool_contact(m, static_cast<int>(q), probe_radius(m, static_cast<int>(q), p), p.proxy, s.x,
                  cand.data(), static_cast<int>(cand.size()), &c, ws.force.data(),
                  ws.contact_block.data());
     if (c.faces == 0) continue;
@@ -1086,7 +1096,7 @@ double potential_energy(const Model& m, const State& s) {
     const ProbeState& p = s.probes[q];
     if (!p.active || !p.proxy_placed || m.probes[q].contact != ContactModel::kSurface) continue;
     ToolContact c;
-    const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
+    const double R = probe_radius(m, static_cast<int>(q), p);
     tool_contact(m, static_cast<int>(q), R, p.proxy, s.x, nullptr, 0, &c);
     // The layer and the virtual coupling between the device and the proxy.
     e += c.energy +
@@ -1155,23 +1165,10 @@ void probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3
   probe->center = center;
   probe->active = true;
   if (radius > 0) probe->radius = radius;
-  if (m.probes[k].contact == ContactModel::kSurface) {
+  if (m.probes[k].contact == ContactModel::kSurface)
     update_proxy(m, k, x, candidates, probe);
-    return;
-  }
-  probe->force.setZero();
-  probe->stiffness.setZero();
-  probe->contacts = 0;
-  const double R = radius > 0 ? radius : m.probes[k].radius;
-  const double kc = m.probes[k].stiffness;
-  for (int i = 0; i < m.num_nodes(); ++i) {
-    Vec3 f, dir;
-    Mat3 dfdc;
-    if (!node_contact(x[i], m.normal[i], center, R, kc, &f, &dfdc, &dir)) continue;
-    probe->force -= f;
-    probe->stiffness += dfdc;
-    ++probe->contacts;
-  }
+  else
+    node_probe_contact(m, x, k, center, probe);
 }
 
 void set_probe(State& state, int probe, const Vec3& center, bool active) {
