@@ -214,6 +214,7 @@ double far_spectral_bound(const Model& model);
 
 // Forces on every node at (state.x, state.v): springs, dampers, Maxwell branches, element
 // volumes, gravity, mass damping, contact. Fills ws.force and the probe/plane reactions in state.
+// Surface-contact probes run the proxy stage first, so their proxies move toward their targets.
 void compute_forces(const Model& model, State& state, Workspace& ws);
 
 // Stored energy (J): springs (law energy scaled by a / b), Maxwell branches, element volumes,
