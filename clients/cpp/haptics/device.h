@@ -1,6 +1,8 @@
 // A haptic device as the servo loop sees it: position and velocity in, force out, SI units in
 // the scene frame. Backends convert units and frames at this edge (haptics/profile.h).
-// Hardware backends are compiled only when their SDK was found at configure time.
+// Hardware backends are built into conica-haptic when their SDK was found at configure time;
+// with CONICA_DEVICE_STUBS they are also built against stub SDK headers and a fake device
+// library (haptics/sdk_stubs) for the tests.
 #pragma once
 
 #include <functional>
@@ -28,6 +30,8 @@ class Device {
   virtual void write_force(const Vec3& force) = 0;
   // Zero force, release the device.
   virtual void close() = 0;
+  // Why the last read or write failed (SDK call and its message); empty while all is well.
+  virtual std::string fault() const { return {}; }
 };
 
 // A scripted hand holding a device tip of mass m (kg) through a spring-damper (the hand's
