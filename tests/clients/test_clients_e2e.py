@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """End to end: conica-server --builtin cube on free ports, then conica-probe (press script),
-clients/python/probe.py and conica-latency --seconds 2 against it.
+clients/python/probe.py (run with this interpreter, which must have the package conica) and
+conica-latency --seconds 2 against it.
 
 Checks: the press recording has one reply per sample, the normal force is ~0 before contact and
 rises with depth (deeper thirds of the contact phase press harder), conica-latency ends with
@@ -48,8 +49,8 @@ def main():
     ap.add_argument("--server", required=True)
     ap.add_argument("--probe", required=True)
     ap.add_argument("--latency", required=True)
-    ap.add_argument("--python-client", required=True)
-    ap.add_argument("--gen", required=True, help="generated Python protobuf modules")
+    ap.add_argument("--python-client", required=True,
+                    help="clients/python/probe.py, run with this interpreter (which has conica)")
     args = ap.parse_args()
     p, s, c = free_ports(3)
     ep = lambda port: f"tcp://127.0.0.1:{port}"  # noqa: E731
@@ -80,11 +81,10 @@ def main():
                  for i in range(3)]
         check(bands[0] < bands[1] < bands[2], f"force rises with depth (band means {bands} N)")
 
-        env = dict(os.environ, PYTHONPATH=args.gen)
         pyrec = os.path.join(tmp, "py.csv")
-        r = subprocess.run(["/usr/bin/python3", args.python_client, "--endpoint", ep(p),
+        r = subprocess.run([sys.executable, args.python_client, "--endpoint", ep(p),
                             "--steps", "200", "--hold", "20", "--out", pyrec],
-                           capture_output=True, text=True, timeout=60, env=env)
+                           capture_output=True, text=True, timeout=60)
         check(r.returncode == 0, f"probe.py exits 0 ({r.stderr.strip()})")
         _, pdepth, pfn = press_forces(pyrec)
         check(pfn[-1] > 0 and pfn[-1] > pfn[len(pfn) // 2 + 40] - 1e-12 and abs(pfn[0]) < 1e-12,

@@ -6,8 +6,11 @@ A listed client key presses the built-in cube and records an upward force growin
 an unknown key gets no reply (probe.py gives up after its timeout, the server logs the refusal);
 damaged key files are refused naming the file.
 
-    PYTHONPATH=build/proto/gen /usr/bin/python3 tests/clients/test_probe_curve.py \\
+    build/python/venv/bin/python tests/clients/test_probe_curve.py \\
         --server build/bin/conica-server --probe-py clients/python/probe.py
+
+(probe.py runs with the same interpreter, which must have the package conica: ctest installs it
+into build/python/venv, tests/python/install_package.py)
 """
 import argparse
 import csv
@@ -20,8 +23,7 @@ import tempfile
 import time
 import unittest
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
-from server_process import ServerProcess  # noqa: E402
+import conica
 
 SERVER = PROBE_PY = None
 TOP = 0.04               # m, top face of the built-in cube
@@ -40,8 +42,10 @@ class ProbeCurveTest(unittest.TestCase):
                         (os.path.join(cls.dir, "other"), "mallory")):
             r = run([SERVER, "--generate-keys", d, "--key-name", name])
             assert r.returncode == 0, r.stdout + r.stderr
-        cls.server = ServerProcess(SERVER, ("--curve-server-key", os.path.join(cls.dir, "server.key"),
-                                             "--curve-clients", os.path.join(cls.dir, "clients")))
+        cls.server = conica.LocalServer(
+            SERVER, builtin="cube", seconds=120,
+            args=("--curve-server-key", os.path.join(cls.dir, "server.key"),
+                  "--curve-clients", os.path.join(cls.dir, "clients")))
 
     @classmethod
     def tearDownClass(cls):
@@ -53,7 +57,7 @@ class ProbeCurveTest(unittest.TestCase):
         return os.path.join(self.dir, name)
 
     def probe(self, key, server_pub="server.pub", extra=()):
-        return run(["/usr/bin/python3", PROBE_PY, "--endpoint", self.server.endpoints[0],
+        return run([sys.executable, PROBE_PY, "--endpoint", self.server.probe_endpoint,
                     "--at", f"{NODE_XY},{NODE_XY},{TOP + RADIUS}", "--depth", "0.002",
                     "--approach", "0.002", "--steps", "40", "--hold", "5",
                     "--curve-server-pub", self.path(server_pub), "--curve-key", self.path(key),

@@ -11,6 +11,7 @@ Units are SI: positions in m, forces in N, stiffness in N/m, timeouts in s."""
 from __future__ import annotations
 
 import asyncio
+import math
 import time
 from types import TracebackType
 from typing import AsyncIterator, List, Optional, Type
@@ -42,9 +43,12 @@ def _default_context() -> zmq.asyncio.Context:
 
 async def _recv(sock: zmq.asyncio.Socket, endpoint: str, t: float, deadline: float,
                 what: str, multipart: bool = False) -> object:
-    left = deadline - time.monotonic()
-    if left <= 0 or not await sock.poll(left * 1e3):
-        raise Timeout(endpoint, t, what)
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise Timeout(endpoint, t, what)
+        if await sock.poll(math.ceil(left * 1e3)):
+            break
     if multipart:
         return await sock.recv_multipart(copy=False)
     return await sock.recv()

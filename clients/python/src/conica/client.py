@@ -4,6 +4,7 @@ Units are SI: positions in m, forces in N, stiffness in N/m, timeouts in s. One 
 for one thread (ZeroMQ sockets are not thread-safe); use one Client per thread, or conica.aio."""
 from __future__ import annotations
 
+import math
 import time
 from types import TracebackType
 from typing import Iterator, Optional, Type, Union
@@ -65,9 +66,13 @@ class Subscriber:
     def recv(self, timeout: Optional[float] = None) -> StateFrame:
         """The next frame; conica.Timeout when none arrives within `timeout` s."""
         t = _sockets.check_timeout(timeout, self.timeout)
-        if not self._sock.poll(t * 1e3):
-            raise Timeout(self.endpoint, t, "state frame")
-        return self._decode(self._sock.recv_multipart(copy=False))
+        deadline = time.monotonic() + t
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise Timeout(self.endpoint, t, "state frame")
+            if self._sock.poll(math.ceil(left * 1e3)):
+                return self._decode(self._sock.recv_multipart(copy=False))
 
     def latest(self, timeout: Optional[float] = None) -> StateFrame:
         """The newest frame already received (older queued frames are dropped), or the next one
@@ -244,15 +249,17 @@ class Client:
                 return
             except zmq.Again:
                 left = deadline - time.monotonic()
-                if left <= 0 or not sock.poll(left * 1e3, zmq.POLLOUT):
+                if left <= 0 or not sock.poll(math.ceil(left * 1e3), zmq.POLLOUT):
                     raise Timeout(endpoint, t, "room to send (queue full)") from None
 
     @staticmethod
     def _wait(sock: zmq.Socket, endpoint: str, t: float, deadline: float, what: str) -> bytes:
-        left = deadline - time.monotonic()
-        if left <= 0 or not sock.poll(left * 1e3):
-            raise Timeout(endpoint, t, what)
-        return sock.recv(zmq.NOBLOCK)
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise Timeout(endpoint, t, what)
+            if sock.poll(math.ceil(left * 1e3)):
+                return sock.recv(zmq.NOBLOCK)
 
     def close(self) -> None:
         """Closes the sockets (pending requests are dropped)."""
