@@ -11,6 +11,7 @@ PACKAGES=(
   libeigen3-dev libzmq3-dev cppzmq-dev protobuf-compiler libprotobuf-dev
   libspdlog-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libceres-dev
   python3-zmq python3-protobuf python3-matplotlib python3-numpy python3-websockets
+  python3-venv python3-pip python3-setuptools python3-wheel python3-pytest
 )
 
 source scripts/apt-ensure.sh
