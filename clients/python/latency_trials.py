@@ -1,23 +1,23 @@
-#!/usr/bin/python3
+#!/usr/bin/env python3
 """Interleaved latency trials: several server/client option variants measured in one run.
 
 For every trial and every variant (the order rotates from trial to trial) a fresh conica-server
-serves the scene on ports the OS picks and conica-latency sends at --rate-hz for --seconds;
-the summary line (p50_us, p99_us, ...) and the legs are collected. Prints a Markdown table with
-the median p50 / p99 per variant and their ratios to the first variant (the default), and the
-load average seen before each trial (the machine may be shared).
+(conica.LocalServer) serves the scene on ports the OS picks and conica-latency sends at --rate-hz
+for --seconds; the summary line (p50_us, p99_us, ...) and the legs are collected. Prints a
+Markdown table with the median p50 / p99 per variant and their ratios to the first variant (the
+default), and the load average seen before each trial (the machine may be shared).
 
-    /usr/bin/python3 clients/python/latency_trials.py --bin build/bin --scene configs/liver.pbtxt \\
-        --trials 5 --seconds 10
+    .venv/bin/python clients/python/latency_trials.py --bin build/bin --scene configs/liver.pbtxt \\
+        --trials 5 --seconds 10      # a venv with the package conica (clients/README.md)
 """
 import argparse
 import os
 import re
-import signal
 import statistics
 import subprocess
 import sys
-import threading
+
+import conica
 
 # name, server options, conica-latency options
 VARIANTS = [
@@ -41,42 +41,19 @@ VARIANTS = [
 ]
 
 
-def start_server(binary, scene, seconds, extra):
-    any_port = "tcp://127.0.0.1:*"
-    proc = subprocess.Popen(
-        [binary, "--scene", scene, "--probe-endpoint", any_port, "--state-endpoint", any_port,
-         "--control-endpoint", any_port, "--seconds", str(seconds), "--stats-seconds", "0", *extra],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    found, lines, endpoints = threading.Event(), [], []
-
-    def read():
-        pattern = re.compile(r"serving: probes (\S+), state (\S+), control (\S+) at")
-        for line in proc.stdout:
-            lines.append(line)
-            m = pattern.search(line)
-            if m and not found.is_set():
-                endpoints.extend(m.groups())
-                found.set()
-        found.set()
-
-    threading.Thread(target=read, daemon=True).start()
-    if not found.wait(60) or not endpoints:
-        proc.kill()
-        sys.exit("latency_trials.py: the server did not start:\n" + "".join(lines))
-    return proc, endpoints
-
-
 def one_trial(args, server_extra, client_extra):
-    proc, (probe, _, control) = start_server(os.path.join(args.bin, "conica-server"), args.scene,
-                                             args.seconds + 30, server_extra)
     try:
-        r = subprocess.run([os.path.join(args.bin, "conica-latency"), "--endpoint", probe,
-                            "--control-endpoint", control, "--rate-hz", str(args.rate_hz),
-                            "--seconds", str(args.seconds), *client_extra],
+        server = conica.LocalServer(os.path.join(args.bin, "conica-server"), scene=args.scene,
+                                    seconds=args.seconds + 30, realtime=True, args=server_extra,
+                                    start_timeout=60)
+    except conica.ServerStartError as e:
+        sys.exit(f"latency_trials.py: {e}")
+    with server:
+        r = subprocess.run([os.path.join(args.bin, "conica-latency"), "--endpoint",
+                            server.probe_endpoint, "--control-endpoint", server.control_endpoint,
+                            "--rate-hz", str(args.rate_hz), "--seconds", str(args.seconds),
+                            *client_extra],
                            capture_output=True, text=True, timeout=args.seconds + 60)
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        proc.wait(timeout=20)
     m = re.search(r"p50_us=(\S+) p99_us=(\S+) p999_us=(\S+) max_us=(\S+) lost=(\d+) sent=(\d+)", r.stdout)
     if not m:
         sys.exit("latency_trials.py: no summary line from conica-latency:\n" + r.stdout + r.stderr)
