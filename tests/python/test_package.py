@@ -126,7 +126,9 @@ def test_position_frames_hold_every_node_as_a_float32_view(client):
         base = p
         while isinstance(base, np.ndarray):
             base = base.base
-        assert isinstance(base, memoryview), type(base)
+        assert isinstance(base, memoryview), type(base)  # the received message
+        assert np.shares_memory(p, np.frombuffer(base, dtype=np.uint8))
+        assert base.nbytes > p.nbytes  # the whole message, positions inside it
         np.testing.assert_allclose(p, rest, atol=1e-4)  # at rest (reset after each test)
 
         # Pressed 3 mm for 0.3 s: the node under the probe goes down (by less than the press:

@@ -41,7 +41,7 @@ def encode_probe(client_id: int, probe_id: int, sequence: int, send_ns: int, pos
     return msg.SerializeToString()
 
 
-def encode_control(kind: "pb.ControlRequest.Kind.ValueType", sequence: int, text: str = "",
+def encode_control(kind: int, sequence: int, text: str = "",
                    name: str = "", value: float = 0.0) -> bytes:
     msg = pb.ClientMessage(protocol_version=PROTOCOL_VERSION)
     c = msg.control
