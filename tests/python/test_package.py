@@ -9,6 +9,7 @@ The built-in cube: 0.04 m on a side, min corner at the origin, a 7 x 7 x 4 cell 
 """
 import asyncio
 import os
+import re
 import sys
 import threading
 import time
@@ -312,3 +313,27 @@ def test_asyncio_timeout():
 
     with pytest.raises(conica.Timeout, match="within 0.2 s"):
         asyncio.run(run())
+
+
+def test_load_scene_swaps_the_body_in():
+    """LOAD_SCENE on a server of its own: the anisotropic block of configs/ replaces the cube;
+    the node count follows from the file's lattice cells."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "configs",
+                        "anisotropic-block.pbtxt")
+    path = os.path.abspath(path)
+    with open(path) as f:
+        cells = [int(v) for v in re.search(r"cells:\s*\[(\d+),\s*(\d+),\s*(\d+)\]", f.read()).groups()]
+    nodes = (cells[0] + 1) * (cells[1] + 1) * (cells[2] + 1)
+    with conica.LocalServer(builtin="cube", seconds=60) as s, s.client(timeout=5.0) as c:
+        with pytest.raises(conica.ServerError) as e:
+            c.load_scene(path + ".missing")
+        assert e.value.code == "CONTROL_REFUSED" and "anisotropic-block.pbtxt.missing" in str(e.value)
+        assert c.mesh().num_nodes == NUM_NODES  # the cube is still served
+        r = c.load_scene(path)
+        assert r.num_nodes == nodes and f"loaded {nodes} nodes" in r.message
+        assert c.mesh().num_nodes == nodes
+        with c.subscribe(forces=False) as sub:
+            frame = sub.recv()
+            while frame.num_nodes != nodes:  # frames published before the swap
+                frame = sub.recv()
+            assert frame.positions.shape == (nodes, 3)
