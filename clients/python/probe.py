@@ -17,7 +17,13 @@ import argparse
 import csv
 import sys
 
-import conica
+try:
+    import conica
+    conica.Client
+except (ImportError, AttributeError):  # not installed (or only the generated modules on the path)
+    sys.exit("probe.py: needs the Python package conica: /usr/bin/python3 -m venv "
+             "--system-site-packages .venv && .venv/bin/pip install --no-build-isolation "
+             "clients/python, then run this with .venv/bin/python (clients/python/README.md)")
 
 
 def main():
