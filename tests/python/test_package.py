@@ -206,6 +206,38 @@ def test_refused_probe_updates_raise_server_error(client):
     assert not client.probe(FAR).contact  # still served
 
 
+def test_threads_share_a_client(client):
+    """Four threads probe their own positions through one client while a fifth asks for stats:
+    every reply is the one to its own update (position echoed, force of that depth)."""
+    client.pause()
+    depths = [0.5e-3, 1e-3, 1.5e-3, 2e-3]  # m
+    expected = {d: client.probe(pressed(d)).force for d in depths}
+    assert len({f[2] for f in expected.values()}) == len(depths)  # four different forces
+    failures = []
+
+    def press(d):
+        try:
+            for _ in range(50):
+                r = client.probe(pressed(d))
+                if not (np.array_equal(r.position, pressed(d)) and np.array_equal(r.force, expected[d])):
+                    failures.append((d, r.position, r.force))
+        except Exception as e:  # noqa: BLE001 - reported below
+            failures.append((d, e))
+
+    def stats():
+        for _ in range(20):
+            if not client.stats().paused:
+                failures.append("stats: not paused")
+
+    threads = [threading.Thread(target=press, args=(d,)) for d in depths]
+    threads.append(threading.Thread(target=stats))
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    assert not failures, failures[:3]
+
+
 def test_bad_endpoint_and_silence_raise_the_right_exceptions():
     with pytest.raises(conica.EndpointError, match="'tcp://127.0.0.1:notaport'"):
         conica.Client("tcp://127.0.0.1:notaport")

@@ -1,10 +1,12 @@
 """The blocking conica client: probes, the state stream and control requests.
 
-Units are SI: positions in m, forces in N, stiffness in N/m, timeouts in s. One Client is meant
-for one thread (ZeroMQ sockets are not thread-safe); use one Client per thread, or conica.aio."""
+Units are SI: positions in m, forces in N, stiffness in N/m, timeouts in s. A Client may be
+shared by threads: its probe and control requests are each served one after another under a
+lock (a probe never waits for a control request). A Subscriber belongs to one thread."""
 from __future__ import annotations
 
 import math
+import threading
 import time
 from types import TracebackType
 from typing import Iterator, Optional, Type, Union
@@ -139,6 +141,8 @@ class Client:
         self._control: Optional[zmq.Socket] = None
         self._sequence = 0
         self._control_sequence = 0
+        self._probe_lock = threading.Lock()
+        self._control_lock = threading.Lock()
 
     @property
     def state_endpoint(self) -> str:
@@ -164,17 +168,20 @@ class Client:
         Raises conica.Timeout (no reply within `timeout` s), conica.ServerError (the update was
         refused, e.g. code "UNKNOWN_PROBE" or "BAD_VALUE"), conica.ProtocolError."""
         t = _sockets.check_timeout(timeout, self.timeout)
-        self._sequence += 1
-        seq = self._sequence
-        payload = _wire.encode_probe(self.client_id, probe_id, seq, _wire.now_ns(), position,
-                                     velocity, radius)
-        deadline = time.monotonic() + t
-        self._send(self._sock, payload, self.endpoint, t, deadline)
-        while True:
-            data = self._wait(self._sock, self.endpoint, t, deadline, f"reply to probe update {seq}")
-            reply = _wire.decode_probe_reply(self.endpoint, data, self.client_id, seq, _wire.now_ns())
-            if reply is not None:
-                return reply
+        with self._probe_lock:
+            self._sequence += 1
+            seq = self._sequence
+            payload = _wire.encode_probe(self.client_id, probe_id, seq, _wire.now_ns(), position,
+                                         velocity, radius)
+            deadline = time.monotonic() + t
+            self._send(self._sock, payload, self.endpoint, t, deadline)
+            while True:
+                data = self._wait(self._sock, self.endpoint, t, deadline,
+                                  f"reply to probe update {seq}")
+                reply = _wire.decode_probe_reply(self.endpoint, data, self.client_id, seq,
+                                                 _wire.now_ns())
+                if reply is not None:
+                    return reply
 
     # ---- state -------------------------------------------------------------------------------
     def subscribe(self, *, forces: bool = True, positions: bool = True,
@@ -192,21 +199,22 @@ class Client:
         raises conica.ServerError with the server's reason."""
         t = _sockets.check_timeout(timeout, self.timeout)
         k = control_kind(kind)
-        if self._control is None:
-            sock = self._ctx.socket(zmq.DEALER)
-            _sockets.setup(sock, self.control_endpoint, self._curve)
-            self._control = sock
-        self._control_sequence += 1
-        seq = self._control_sequence
-        deadline = time.monotonic() + t
-        self._send(self._control, _wire.encode_control(k, seq, text, name, value),
-                   self.control_endpoint, t, deadline)
-        what = f"reply to control request {pb.ControlRequest.Kind.Name(k)} ({seq})"
-        while True:
-            data = self._wait(self._control, self.control_endpoint, t, deadline, what)
-            reply = _wire.decode_control_reply(self.control_endpoint, data, seq)
-            if reply is not None:
-                return reply
+        with self._control_lock:
+            if self._control is None:
+                sock = self._ctx.socket(zmq.DEALER)
+                _sockets.setup(sock, self.control_endpoint, self._curve)
+                self._control = sock
+            self._control_sequence += 1
+            seq = self._control_sequence
+            deadline = time.monotonic() + t
+            self._send(self._control, _wire.encode_control(k, seq, text, name, value),
+                       self.control_endpoint, t, deadline)
+            what = f"reply to control request {pb.ControlRequest.Kind.Name(k)} ({seq})"
+            while True:
+                data = self._wait(self._control, self.control_endpoint, t, deadline, what)
+                reply = _wire.decode_control_reply(self.control_endpoint, data, seq)
+                if reply is not None:
+                    return reply
 
     def reset(self) -> ControlResult:
         """Puts the body back in its rest state."""
@@ -263,9 +271,10 @@ class Client:
 
     def close(self) -> None:
         """Closes the sockets (pending requests are dropped)."""
-        self._sock.close(linger=0)
-        if self._control is not None:
-            self._control.close(linger=0)
+        with self._probe_lock, self._control_lock:
+            self._sock.close(linger=0)
+            if self._control is not None:
+                self._control.close(linger=0)
 
     def __enter__(self) -> "Client":
         return self
