@@ -323,6 +323,12 @@ def test_asyncio_client_gives_the_same_replies(server, client):
             stats = await a.stats()
             async with a.subscribe(forces=False) as sub:
                 frame = await sub.recv()
+                async for later in sub:
+                    assert later.tick == frame.tick  # paused: the simulation holds its tick
+                    break
+                await asyncio.sleep(0.05)
+                newest = await sub.latest()
+                assert newest.topic == "S" and newest.num_nodes == NUM_NODES
             with pytest.raises(conica.ServerError):
                 await a.probe(x, probe_id=3)
             return r, stats, frame
