@@ -15,8 +15,8 @@ import zmq
 
 from . import _sockets, _wire
 from ._pb import pb
-from ._sockets import (DEFAULT_CONTROL_ENDPOINT, DEFAULT_ENDPOINT, DEFAULT_STATE_ENDPOINT,
-                       DEFAULT_TIMEOUT_S, TOPIC_FORCES, TOPIC_POSITIONS)
+from ._sockets import (DEFAULT_ENDPOINT, DEFAULT_STATE_ENDPOINT, DEFAULT_TIMEOUT_S, TOPIC_FORCES,
+                       TOPIC_POSITIONS)
 from ._wire import Vector
 from .curve import CurveKeys
 from .errors import ProtocolError, Timeout
