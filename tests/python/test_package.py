@@ -103,6 +103,12 @@ def test_stiffness_is_the_derivative_of_the_force(client):
     assert k[2, 2] < 0  # pressing deeper pushes back harder
     assert np.abs(k[2, :2]).max() > 0.05 * scale  # a test of more than one entry
     np.testing.assert_allclose(fd, k, rtol=0, atol=1e-4 * scale)
+    # The reply's local model F0 + K dx predicts the force 0.1 mm away ten times better than
+    # F0 alone (what is left is the law's curvature).
+    r0, step = client.probe(x0), np.array((1e-4, -1e-4, -1e-4))
+    actual = client.probe(x0 + step).force
+    error = np.linalg.norm(r0.force_at(x0 + step) - actual)
+    assert error < 0.1 * np.linalg.norm(r0.force - actual), (error, r0.force, actual)
 
 
 def test_position_frames_hold_every_node_as_a_float32_view(client):

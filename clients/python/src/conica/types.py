@@ -43,6 +43,15 @@ class ProbeReply:
     server_reply_time_ns: int
     round_trip_s: float
 
+    def force_at(self, position: "npt.ArrayLike") -> Float64Array:
+        """N: the local model F0 + K (x - x0) of this reply at probe position x (m), what a
+        haptic loop renders between replies (x0 = self.position)."""
+        x = np.asarray(position, dtype=np.float64)
+        if x.shape != (3,):
+            raise ValueError(f"position (m) must be 3 numbers (x, y, z), got shape {x.shape}")
+        out: Float64Array = self.force + self.stiffness @ (x - self.position)
+        return out
+
 
 @dataclass(frozen=True)
 class ProbeForce:
