@@ -1,6 +1,7 @@
 // conica-lab law: the load-deflection curve of one conical spring card as CSV.
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 
 #include "app/lab/lab.h"
@@ -14,6 +15,7 @@ void register_law(CLI::App& app, Runner* run) {
     double from = 0, to = 89;
     int steps = 90;
     double cap = 0;
+    int precision = std::numeric_limits<double>::max_digits10;
     std::string plot;
   };
   auto o = std::make_shared<Opts>();
@@ -29,6 +31,11 @@ void register_law(CLI::App& app, Runner* run) {
   cmd->add_option("--to", o->to, "last deflection")->capture_default_str();
   cmd->add_option("--steps", o->steps, "number of samples (>= 2)")->capture_default_str();
   cmd->add_option("--cap", o->cap, "stiffness cap (0: exact law)")->capture_default_str();
+  cmd->add_option("--precision", o->precision,
+                  "significant digits of every number (default: 17, enough to read back the "
+                  "exact double)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, std::numeric_limits<double>::max_digits10));
   cmd->add_option("--plot", o->plot, "also draw the curve to this PNG file");
   cmd->callback([o, run] {
     *run = [o]() -> int {
@@ -43,11 +50,12 @@ void register_law(CLI::App& app, Runner* run) {
       }
       const ConicalLaw law(o->card, o->cap > 0 ? o->cap : INFINITY);
       std::string csv = "deflection,force,stiffness,phase\n";
+      const int p = o->precision;
       char line[160];
       for (int i = 0; i < o->steps; ++i) {
         const double x = o->from + (o->to - o->from) * i / (o->steps - 1);
         const LawSample s = law.evaluate(x);
-        std::snprintf(line, sizeof line, "%.9g,%.9g,%.9g,%s\n", x, s.force, s.stiffness,
+        std::snprintf(line, sizeof line, "%.*g,%.*g,%.*g,%s\n", p, x, p, s.force, p, s.stiffness,
                       phase_name(s.phase));
         csv += line;
       }
