@@ -22,6 +22,8 @@ class Frames(unittest.TestCase):
         f = frames.SceneFrame()
         self.assertTrue(close(f.position_to_scene((0.1, -0.2, 0.3)), (0.1, -0.2, 0.3)))
         self.assertTrue(close(f.vector_to_ros((1.0, 2.0, 3.0)), (1.0, 2.0, 3.0)))
+        k = [[-3.0, 0.5, 0.2], [0.5, -2.0, 0.1], [0.2, 0.1, -1.0]]
+        self.assertEqual(f.stiffness_to_ros(k), [v for row in k for v in row])
 
     def test_quarter_turn_about_z_and_shift(self):
         # The scene's x axis along world +y, its y along world -x; origin at (1, 2, 0) m.

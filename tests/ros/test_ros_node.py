@@ -47,6 +47,15 @@ def check(cond, what):
         failures.append(what)
 
 
+def raise_priority():
+    """nice -10 where permitted (root): the test measures the node at 1 kHz, not the CPU share
+    left by whatever else the machine runs; without permission it runs at the default."""
+    try:
+        os.nice(-10)
+    except OSError:
+        pass
+
+
 def percentile(values, q):
     v = sorted(values)
     return v[min(len(v) - 1, int(round(q / 100 * (len(v) - 1))))]
@@ -83,6 +92,7 @@ def main():
     sys.path.insert(0, os.path.dirname(os.path.realpath(args.node)))
     from conica_ros import link as links
 
+    raise_priority()  # this process; the node and rosmaster inherit it
     p_port, s_port, c_port, m_port = free_ports(4)
     ep = lambda port: f"tcp://127.0.0.1:{port}"  # noqa: E731
     tmp = tempfile.mkdtemp(prefix="conica-ros-test-")
@@ -119,23 +129,28 @@ def main():
                     check(False, "conica-server answers a probe update")
                     return 1
         forces = {}
-        for kind in kinds:
-            lk = link if kind == kinds[-1] else links.open_link(ep(p_port), ep(s_port), ep(c_port),
-                                                              timeout=0.5, kind=kind)
+        opened = {kind: (link if kind == kinds[-1] else
+                         links.open_link(ep(p_port), ep(s_port), ep(c_port), timeout=0.5, kind=kind))
+                  for kind in kinds}
+        for kind, lk in opened.items():
             check(lk.probe(above).force.tolist() == [0.0, 0.0, 0.0], f"{lk.kind}: no force off the body")
-            for _ in range(5):
-                r = lk.probe(pressed)
-            forces[kind] = r.force
-            check(r.force[2] > 0.02 and r.stiffness[2][2] < 0,
-                  f"{lk.kind}: pressed 4 mm in, Fz = {r.force[2]:.4f} N > 0.02, "
-                  f"dFz/dz = {r.stiffness[2][2]:.1f} N/m < 0")
-            lk.probe(above)
             mesh_pos, tris = lk.mesh()
             check(len(tris) > 0 and len(mesh_pos) == 320, f"{lk.kind}: GET_MESH gives the 320-node cube "
                   f"({len(mesh_pos)} nodes, {len(tris)} triangles)")
+        t_end = time.monotonic() + 0.3  # press 4 mm in and hold until the body settles
+        while time.monotonic() < t_end:
+            link.probe(pressed)
+            time.sleep(0.001)
+        for kind, lk in opened.items():  # then each link in turn, a millisecond apart
+            r = lk.probe(pressed)
+            forces[kind] = r.force[2]
+            check(r.force[2] > 0.02 and r.stiffness[2][2] < 0,
+                  f"{lk.kind}: pressed 4 mm in, Fz = {r.force[2]:.4f} N > 0.02, "
+                  f"dFz/dz = {r.stiffness[2][2]:.1f} N/m < 0")
         if len(kinds) == 2:
-            a, b = forces["package"][2], forces["zmq"][2]
-            check(abs(a - b) <= 0.05 * max(a, b), f"both links agree pressed in ({a:.4f} / {b:.4f} N)")
+            a, b = forces["package"], forces["zmq"]
+            check(abs(a - b) <= 0.02 * max(a, b), f"both links agree pressed in ({a:.5f} / {b:.5f} N)")
+        link.probe(above)
 
         # ---- ROS ------------------------------------------------------------------------------
         master = subprocess.Popen([rosmaster, "--core", "-p", str(m_port)], env=env,
@@ -262,7 +277,7 @@ def main():
         lost = len(sent) - len(received)
         lat_us = [(got[key][0] - (key[0] + key[1] * 1e-9)) * 1e6 for key, _ in received]
         p50, p99, pmax = percentile(lat_us, 50), percentile(lat_us, 99), max(lat_us)
-        print(f"ros_e2e: sent={len(sent)} in {elapsed:.3f} s ({len(sent) / elapsed:.0f} Hz, {late} "
+        print(f"ros_e2e: nice {os.nice(0)}, sent={len(sent)} in {elapsed:.3f} s ({len(sent) / elapsed:.0f} Hz, {late} "
               f"sends > 2 ms late) received={len(received)} lost={lost} ({100 * lost / len(sent):.2f} %) "
               f"latency p50_us={p50:.0f} p99_us={p99:.0f} max_us={pmax:.0f}", flush=True)
         check(len(sent) / elapsed > 950, f"poses sent at 1 kHz ({len(sent) / elapsed:.0f} Hz)")
@@ -298,6 +313,41 @@ def main():
               f"y [{min(ys):.4f}, {max(ys):.4f}], z [{min(zs):.4f}, {max(zs):.4f}]")
         check(max(xs) - min(xs) > 0.035 and max(ys) - min(ys) > 0.035, "and spanning it")
         check(node.poll() is None, "conica-ros still running")
+
+        # ---- unpipelined (~pipeline false: each pose waits for its reply), 200 Hz, 0.5 s -------
+        node.terminate()
+        node.wait(timeout=5)
+        node2 = subprocess.Popen([args.python, args.node, "__ns:=/probe0", "__name:=conica_ros_wait",
+                                  f"_endpoint:={ep(p_port)}", f"_state_endpoint:={ep(s_port)}",
+                                  f"_control_endpoint:={ep(c_port)}", "_pipeline:=false",
+                                  "_surface_rate_hz:=0", "_scene_translation:=[1.0, 2.0, 0.0]",
+                                  "_scene_rotation:=[0.0, 0.0, 0.7071067811865476, 0.7071067811865476]"],
+                                 env=env, stdout=open(os.path.join(tmp, "node2.log"), "w"),
+                                 stderr=subprocess.STDOUT)
+        procs.append(node2)
+        with lock:
+            wrenches.clear()
+        deadline = time.monotonic() + 20
+        while not wrenches and time.monotonic() < deadline and node2.poll() is None:
+            pub.publish(pose(above))  # until the new node answers
+            time.sleep(0.01)
+        time.sleep(0.2)
+        with lock:
+            wrenches.clear()
+        keys = []
+        for k in range(100):
+            m = pose(pressed)
+            keys.append((m.header.stamp.secs, m.header.stamp.nsecs))
+            pub.publish(m)
+            time.sleep(0.005)
+        time.sleep(0.5)
+        with lock:
+            got2 = {key: wrenches[key][1] for key in keys if key in wrenches}
+        pub.publish(pose(above))
+        fz2 = [w.wrench.force.z for w in got2.values()]
+        check(len(got2) >= 95 and min(fz2) > 0.02,
+              f"~pipeline false: {len(got2)} of 100 poses answered, pressed in Fz min "
+              f"{min(fz2) if fz2 else float('nan'):.4f} N > 0.02")
     finally:
         for p in reversed(procs):
             if p.poll() is None:

@@ -45,6 +45,7 @@ class SceneFrame:
         self.R = quaternion_matrix(rotation)
         self._t = tuple(float(v) for v in t)
         self._R = tuple(tuple(float(v) for v in row) for row in self.R)
+        self._identity = bool(np.array_equal(self.R, np.eye(3)))
 
     def position_to_scene(self, p_ros):
         """m, ROS frame -> m, scene frame: R^T (p - t)."""
@@ -71,9 +72,13 @@ class SceneFrame:
     def stiffness_to_ros(self, k_scene):
         """(3, 3) N/m, d force / d position in the scene -> the same in the ROS frame: R K R^T,
         as 9 values row-major."""
+        k0, k1, k2 = k_scene
+        if self._identity:
+            return [k0[0], k0[1], k0[2], k1[0], k1[1], k1[2], k2[0], k2[1], k2[2]]
         R = self._R
-        rk = [[sum(R[i][m] * k_scene[m][j] for m in range(3)) for j in range(3)] for i in range(3)]
-        return [sum(rk[i][m] * R[j][m] for m in range(3)) for i in range(3) for j in range(3)]
+        rk = [(r[0] * k0[0] + r[1] * k1[0] + r[2] * k2[0], r[0] * k0[1] + r[1] * k1[1] + r[2] * k2[1],
+               r[0] * k0[2] + r[1] * k1[2] + r[2] * k2[2]) for r in R]
+        return [a[0] * r[0] + a[1] * r[1] + a[2] * r[2] for a in rk for r in R]
 
     def points_to_ros(self, pts_scene):
         """(n, 3) m, scene -> (n, 3) m, ROS frame."""
