@@ -51,6 +51,28 @@ MeshFile MeshAssembler::finish(const std::map<int, std::string>& names) {
 
 }  // namespace detail
 
+std::string convert_command(const std::string& path) {
+  const std::size_t slash = path.find_last_of('/');
+  const std::size_t dot = path.find_last_of('.');
+  const bool has_ext = dot != std::string::npos && (slash == std::string::npos || dot > slash + 1);
+  const std::string stem = has_ext ? path.substr(0, dot) : path;
+  std::string out = stem + ".msh";
+  if (out == path) out = stem + "-converted.msh";
+  auto quote = [](const std::string& s) {
+    for (const char c : s) {
+      const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                         (c >= '0' && c <= '9') || c == '/' || c == '.' || c == '_' || c == '-';
+      if (!plain) {
+        std::string q = "'";
+        for (const char d : s) q += d == '\'' ? std::string("'\\''") : std::string(1, d);
+        return q + "'";
+      }
+    }
+    return s;
+  };
+  return "meshio convert --output-format gmsh22 " + quote(path) + " " + quote(out);
+}
+
 Result<MeshFile> parse_mesh(std::string_view text, const std::string& name) {
   detail::LineReader in(text, name);
   try {
@@ -62,13 +84,17 @@ Result<MeshFile> parse_mesh(std::string_view text, const std::string& name) {
     if (keyword == "$NOD") {
       return detail::read_gmsh1(in);
     }
-    if (head.rfind("$MeshFormat", 0) == 0) return detail::read_gmsh(in);
-    if (head.rfind("# vtk DataFile Version", 0) == 0) return detail::read_vtk(in, head);
+    if (head.rfind("$MeshFormat", 0) == 0) return detail::read_gmsh(in, text);
+    if (head.rfind("# vtk DataFile Version", 0) == 0) return detail::read_vtk(in, head, text);
+    const std::string convert = "; convert it with `" + convert_command(name) + "`";
+    if (head.rfind("<?xml", 0) == 0 || head.rfind("<VTKFile", 0) == 0) {
+      in.fail("XML mesh files (VTK .vtu/.vtk XML, XDMF...) are not supported" + convert);
+    }
     if (text.find('\0') != std::string_view::npos) {
-      in.fail("binary file of unknown format, expected a Gmsh or VTK mesh");
+      in.fail("binary file of unknown format, expected a Gmsh or legacy VTK mesh" + convert);
     }
     in.fail("unrecognised mesh format: first line is '" + std::string(head.substr(0, 60)) +
-            "', expected $NOD, $MeshFormat or # vtk DataFile");
+            "', expected $NOD, $MeshFormat or # vtk DataFile" + convert);
   } catch (const detail::ParseError& e) {
     return Error{e.message};
   } catch (const std::bad_alloc&) {

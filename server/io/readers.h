@@ -38,9 +38,12 @@ class MeshAssembler {
 };
 
 // Each reader is handed the reader positioned after the first (header) line, and throws
-// ParseError on a malformed file.
+// ParseError on a malformed file. `text` is the whole file: a binary file is read from the
+// reader's position on with a ByteReader (io/binary_reader.h).
 MeshFile read_gmsh1(LineReader& in);
-MeshFile read_gmsh(LineReader& in);  // after "$MeshFormat": versions 2.x and 4.1
-MeshFile read_vtk(LineReader& in, std::string_view header);
+// After "$MeshFormat": versions 2.x and 4.1, ASCII and binary.
+MeshFile read_gmsh(LineReader& in, std::string_view text);
+// After "# vtk DataFile Version x.y": ASCII and BINARY.
+MeshFile read_vtk(LineReader& in, std::string_view header, std::string_view text);
 
 }  // namespace conica::io::detail

@@ -466,13 +466,23 @@ TEST(MeshReaderErrors, UnsupportedVersionOrBinary) {
   expect_error(v3, 2, "unsupported Gmsh version 3.0");
   const std::string v40 = replace(kGmsh41, "4.1 0 8", "4 0 8");
   expect_error(v40, 2, "unsupported Gmsh version 4");
+  // Binary files are read (tests/io/meshio_test.cc); an ASCII file that says it is binary
+  // fails where the binary data would begin, naming the byte offset.
   const std::string binary = replace(kGmsh41, "4.1 0 8", "4.1 1 8");
-  expect_error(binary, 2, "binary Gmsh files are not supported");
-  const std::string vtk_binary = replace(kVtk, "ASCII", "BINARY");
-  expect_error(vtk_binary, 3, "binary VTK files are not supported", "bad.vtk");
+  const Result<MeshFile> b = parse_mesh(binary, "bad.msh");
+  ASSERT_FALSE(b.ok());
+  EXPECT_THAT(b.error(), HasSubstr("bad.msh: byte 20: endianness marker: expected the integer 1"));
+  expect_error(replace(kGmsh41, "4.1 0 8", "4.1 2 8"), 2, "file type 2 is neither 0 (ASCII)");
+  const Result<MeshFile> v = parse_mesh(replace(kVtk, "ASCII", "BINARY"), "bad.vtk");
+  ASSERT_FALSE(v.ok());
+  EXPECT_THAT(v.error(), HasSubstr("bad.vtk: byte "));
   const std::string grid = replace(kVtk, "UNSTRUCTURED_GRID", "STRUCTURED_POINTS");
   expect_error(grid, 4, "unsupported VTK dataset STRUCTURED_POINTS", "bad.vtk");
   expect_error("solid cube\nfacet normal 0 0 1\n", 1, "unrecognised mesh format", "cube.stl");
+  expect_error("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\">\n", 1,
+               "XML mesh files (VTK .vtu/.vtk XML, XDMF...) are not supported; convert it with "
+               "`meshio convert --output-format gmsh22 in.vtu in.msh`",
+               "in.vtu");
   expect_error("", 1, "empty file", "empty.msh");
   expect_error("\n\n  \n", 1, "empty file", "empty.msh");
 }
