@@ -3,7 +3,7 @@ asyncio clients share it."""
 from __future__ import annotations
 
 import time
-from typing import Iterator, List, Optional, Sequence, Tuple, Union
+from typing import Container, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -68,13 +68,14 @@ def _error_code_name(code: int) -> str:
         return f"code {code}"
 
 
-def _raise_if_error(endpoint: str, msg: "pb.ServerMessage", sequence: int) -> bool:
-    """Raises ServerError for an Error reply to `sequence` (or to an unknown one); False for an
-    Error about an older request (to skip); True when the message is not an Error."""
+def _raise_if_error(endpoint: str, msg: "pb.ServerMessage", awaited: Container[int]) -> bool:
+    """Raises ServerError for an Error reply to an awaited sequence (or to an unknown one);
+    False for an Error about an older request (to skip); True when the message is not an
+    Error."""
     if msg.WhichOneof("body") != "error":
         return True
     e = msg.error
-    if e.sequence in (sequence, 0):
+    if e.sequence == 0 or e.sequence in awaited:
         raise ServerError(endpoint, _error_code_name(e.code), e.message, e.sequence or None)
     return False
 
@@ -83,11 +84,12 @@ def _array3(v: "pb.Vec3") -> npt.NDArray[np.float64]:
     return np.array((v.x, v.y, v.z), dtype=np.float64)
 
 
-def decode_probe_reply(endpoint: str, data: Buffer, client_id: int, sequence: int,
+def decode_probe_reply(endpoint: str, data: Buffer, client_id: int, awaited: Container[int],
                        recv_ns: int) -> Optional[ProbeReply]:
-    """The reply to probe update `sequence`, None for a late reply to an earlier one."""
+    """The reply to one of the `awaited` probe updates (sequence numbers), None for a late reply
+    to one given up on."""
     msg = _parse_server_message(endpoint, data)
-    if not _raise_if_error(endpoint, msg, sequence):
+    if not _raise_if_error(endpoint, msg, awaited):
         return None
     body = msg.WhichOneof("body")
     if body != "force":
@@ -95,13 +97,13 @@ def decode_probe_reply(endpoint: str, data: Buffer, client_id: int, sequence: in
                                       f"socket, got {{{body}}}" if body else
                                       "ServerMessage without a body on the probe socket")
     f = msg.force
-    if f.sequence != sequence or f.client_id != client_id:
+    if f.client_id != client_id or f.sequence not in awaited:
         return None
     if not f.HasField("force"):
-        raise ProtocolError(endpoint, f"ForceReply.force is missing (sequence {sequence})")
+        raise ProtocolError(endpoint, f"ForceReply.force is missing (sequence {f.sequence})")
     if len(f.stiffness.m) != 9:
         raise ProtocolError(endpoint, f"ForceReply.stiffness has {len(f.stiffness.m)} values, "
-                                      f"expected 9 (3 x 3, row-major; sequence {sequence})")
+                                      f"expected 9 (3 x 3, row-major; sequence {f.sequence})")
     return ProbeReply(
         force=_array3(f.force),
         stiffness=np.array(f.stiffness.m, dtype=np.float64).reshape(3, 3),
@@ -117,7 +119,7 @@ def decode_control_reply(endpoint: str, data: Buffer,
     """The reply to control request `sequence` (ServerError when refused), None for a late reply
     to an earlier request."""
     msg = _parse_server_message(endpoint, data)
-    if not _raise_if_error(endpoint, msg, sequence):
+    if not _raise_if_error(endpoint, msg, (sequence,)):
         return None
     body = msg.WhichOneof("body")
     if body != "control_reply":

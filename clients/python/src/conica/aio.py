@@ -20,13 +20,14 @@ import zmq
 import zmq.asyncio
 
 from . import _sockets, _wire
+from ._book import Item, ProbeBook
 from ._pb import pb
 from ._sockets import (DEFAULT_ENDPOINT, DEFAULT_STATE_ENDPOINT, DEFAULT_TIMEOUT_S, TOPIC_FORCES,
                        TOPIC_POSITIONS)
 from ._wire import Vector
 from .client import ControlKind, control_kind
 from .curve import CurveKeys
-from .errors import ProtocolError, Timeout
+from .errors import ProtocolError, ServerError, Timeout
 from .types import ControlResult, Mesh, ProbeReply, StateFrame
 
 __all__ = ["Client", "Subscriber"]
@@ -141,7 +142,7 @@ class Client:
         self._sock: zmq.asyncio.Socket = self._ctx.socket(zmq.DEALER)
         _sockets.setup(self._sock, endpoint, curve)
         self._control: Optional[zmq.asyncio.Socket] = None
-        self._sequence = 0
+        self._book = ProbeBook(endpoint, self.client_id)
         self._control_sequence = 0
         self._probe_lock = asyncio.Lock()
         self._control_lock = asyncio.Lock()
@@ -167,19 +168,65 @@ class Client:
         calls on one client are served one after the other."""
         t = _sockets.check_timeout(timeout, self.timeout)
         async with self._probe_lock:
-            self._sequence += 1
-            seq = self._sequence
-            payload = _wire.encode_probe(self.client_id, probe_id, seq, _wire.now_ns(), position,
-                                         velocity, radius)
-            deadline = time.monotonic() + t
-            await _send(self._sock, payload, self.endpoint, t, deadline)
-            while True:
-                data = await _recv(self._sock, self.endpoint, t, deadline,
-                                   f"reply to probe update {seq}")
-                reply = _wire.decode_probe_reply(self.endpoint, data, self.client_id,  # type: ignore[arg-type]
-                                                 seq, _wire.now_ns())
-                if reply is not None:
-                    return reply
+            seq = await self._send_probe(position, probe_id, velocity, radius, t)
+            try:
+                deadline = time.monotonic() + t
+                while True:
+                    item = await self._read_probe(t, deadline, f"reply to probe update {seq}")
+                    if item.sequence == seq or item.sequence is None:
+                        if isinstance(item, ServerError):
+                            raise item
+                        return item
+                    self._book.arrived.append(item)
+            finally:
+                self._book.pending.pop(seq, None)
+
+    async def send_probe(self, position: Vector, *, probe_id: int = 0,
+                         velocity: Optional[Vector] = None, radius: Optional[float] = None,
+                         timeout: Optional[float] = None) -> int:
+        """As conica.Client.send_probe: sends without waiting for the reply, returns the
+        sequence number."""
+        t = _sockets.check_timeout(timeout, self.timeout)
+        async with self._probe_lock:
+            seq = await self._send_probe(position, probe_id, velocity, radius, t)
+            self._book.trim()
+            return seq
+
+    async def recv_reply(self, timeout: Optional[float] = None) -> ProbeReply:
+        """As conica.Client.recv_reply: the next reply to a send_probe() update."""
+        t = _sockets.check_timeout(timeout, self.timeout)
+        async with self._probe_lock:
+            book = self._book
+            if book.arrived:
+                item = book.arrived.popleft()
+            elif book.pending:
+                item = await self._read_probe(t, time.monotonic() + t,
+                                              f"reply to any of {len(book.pending)} probe updates")
+            else:
+                raise ValueError("no probe update is awaited (send one with send_probe())")
+            if isinstance(item, ServerError):
+                raise item
+            return item
+
+    @property
+    def outstanding(self) -> int:
+        """Probe updates sent with send_probe() whose replies have not been returned yet."""
+        return self._book.outstanding
+
+    async def _send_probe(self, position: Vector, probe_id: int, velocity: Optional[Vector],
+                          radius: Optional[float], t: float) -> int:
+        seq = self._book.sequence + 1
+        payload = _wire.encode_probe(self.client_id, probe_id, seq, _wire.now_ns(), position,
+                                     velocity, radius)
+        await _send(self._sock, payload, self.endpoint, t, time.monotonic() + t)
+        return self._book.next_sequence()
+
+    async def _read_probe(self, t: float, deadline: float, what: str) -> Item:
+        while True:
+            data = await _recv(self._sock, self.endpoint, t, deadline, what)
+            item = self._book.decode(data)  # type: ignore[arg-type]
+            if item is not None:
+                return item
 
     def subscribe(self, *, forces: bool = True, positions: bool = True,
                   timeout: Optional[float] = None) -> Subscriber:

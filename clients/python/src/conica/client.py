@@ -9,17 +9,18 @@ import math
 import threading
 import time
 from types import TracebackType
-from typing import Iterator, Optional, Type, Union
+from typing import Iterator, List, Optional, Type, Union
 
 import zmq
 
 from . import _sockets, _wire
+from ._book import Item, ProbeBook
 from ._pb import pb
 from ._sockets import (DEFAULT_ENDPOINT, DEFAULT_STATE_ENDPOINT, DEFAULT_TIMEOUT_S, TOPIC_FORCES,
                        TOPIC_POSITIONS)
 from ._wire import Vector
 from .curve import CurveKeys
-from .errors import ProtocolError, Timeout
+from .errors import ProtocolError, ServerError, Timeout
 from .types import ControlResult, Mesh, ProbeReply, StateFrame
 
 ControlKind = Union[str, int]
@@ -139,9 +140,9 @@ class Client:
         self._sock: zmq.Socket = self._ctx.socket(zmq.DEALER)
         _sockets.setup(self._sock, endpoint, curve)
         self._control: Optional[zmq.Socket] = None
-        self._sequence = 0
         self._control_sequence = 0
         self._probe_lock = threading.Lock()
+        self._book = ProbeBook(endpoint, self.client_id)
         self._control_lock = threading.Lock()
 
     @property
@@ -166,22 +167,100 @@ class Client:
 
         velocity: m/s, optional; radius: m, optional (None keeps the scene's radius).
         Raises conica.Timeout (no reply within `timeout` s), conica.ServerError (the update was
-        refused, e.g. code "UNKNOWN_PROBE" or "BAD_VALUE"), conica.ProtocolError."""
+        refused, e.g. code "UNKNOWN_PROBE" or "BAD_VALUE"), conica.ProtocolError. Replies to
+        updates sent with send_probe() that arrive meanwhile are kept for recv_reply()."""
         t = _sockets.check_timeout(timeout, self.timeout)
         with self._probe_lock:
-            self._sequence += 1
-            seq = self._sequence
-            payload = _wire.encode_probe(self.client_id, probe_id, seq, _wire.now_ns(), position,
-                                         velocity, radius)
-            deadline = time.monotonic() + t
-            self._send(self._sock, payload, self.endpoint, t, deadline)
-            while True:
-                data = self._wait(self._sock, self.endpoint, t, deadline,
-                                  f"reply to probe update {seq}")
-                reply = _wire.decode_probe_reply(self.endpoint, data, self.client_id, seq,
-                                                 _wire.now_ns())
-                if reply is not None:
-                    return reply
+            seq = self._send_probe(position, probe_id, velocity, radius, t)
+            try:
+                deadline = time.monotonic() + t
+                while True:
+                    item = self._read_probe(t, deadline, f"reply to probe update {seq}")
+                    if item.sequence == seq or item.sequence is None:
+                        if isinstance(item, ServerError):
+                            raise item
+                        return item
+                    self._book.arrived.append(item)
+            finally:
+                self._book.pending.pop(seq, None)
+
+    def send_probe(self, position: Vector, *, probe_id: int = 0,
+                   velocity: Optional[Vector] = None, radius: Optional[float] = None,
+                   timeout: Optional[float] = None) -> int:
+        """Sends a probe update (position in m, as probe()) without waiting for its reply and
+        returns its sequence number; recv_reply() and replies() return the replies. Pipelining
+        keeps a fixed-rate loop (a 1 kHz haptic loop) from waiting a round trip per update. At
+        most `max_outstanding` (1000) updates are awaited; older ones are given up (late replies
+        to them are dropped)."""
+        t = _sockets.check_timeout(timeout, self.timeout)
+        with self._probe_lock:
+            seq = self._send_probe(position, probe_id, velocity, radius, t)
+            self._book.trim()
+            return seq
+
+    def recv_reply(self, timeout: Optional[float] = None) -> ProbeReply:
+        """The next reply to an update sent with send_probe(), in the order they arrive (each
+        has its .sequence). conica.Timeout after `timeout` s; conica.ServerError for a refused
+        update (its .sequence names it); ValueError when no update is awaited."""
+        t = _sockets.check_timeout(timeout, self.timeout)
+        with self._probe_lock:
+            book = self._book
+            if book.arrived:
+                item = book.arrived.popleft()
+            elif book.pending:
+                item = self._read_probe(t, time.monotonic() + t,
+                                        f"reply to any of {len(book.pending)} probe updates")
+            else:
+                raise ValueError("no probe update is awaited (send one with send_probe())")
+            if isinstance(item, ServerError):
+                raise item
+            return item
+
+    def replies(self) -> List[ProbeReply]:
+        """Every reply to send_probe() updates received so far, oldest first, without waiting
+        (a refused update raises conica.ServerError; the replies before it come first)."""
+        with self._probe_lock:
+            book = self._book
+            while book.pending:
+                try:
+                    data = self._sock.recv(zmq.NOBLOCK)
+                except zmq.Again:
+                    break
+                item = book.decode(data)
+                if item is not None:
+                    book.arrived.append(item)
+            return book.take_arrived()
+
+    @property
+    def outstanding(self) -> int:
+        """Probe updates sent with send_probe() whose replies have not been returned yet."""
+        return self._book.outstanding
+
+    @property
+    def max_outstanding(self) -> int:
+        """How many send_probe() updates are awaited at most (older ones are given up)."""
+        return self._book.max_outstanding
+
+    @max_outstanding.setter
+    def max_outstanding(self, n: int) -> None:
+        if n < 1:
+            raise ValueError(f"max_outstanding must be >= 1, got {n}")
+        self._book.max_outstanding = int(n)
+
+    def _send_probe(self, position: Vector, probe_id: int, velocity: Optional[Vector],
+                    radius: Optional[float], t: float) -> int:
+        seq = self._book.sequence + 1
+        payload = _wire.encode_probe(self.client_id, probe_id, seq, _wire.now_ns(), position,
+                                     velocity, radius)
+        self._send(self._sock, payload, self.endpoint, t, time.monotonic() + t)
+        return self._book.next_sequence()
+
+    def _read_probe(self, t: float, deadline: float, what: str) -> Item:
+        while True:
+            data = self._wait(self._sock, self.endpoint, t, deadline, what)
+            item = self._book.decode(data)
+            if item is not None:
+                return item
 
     # ---- state -------------------------------------------------------------------------------
     def subscribe(self, *, forces: bool = True, positions: bool = True,
