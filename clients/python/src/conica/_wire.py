@@ -45,7 +45,8 @@ def encode_control(kind: int, sequence: int, text: str = "",
                    name: str = "", value: float = 0.0) -> bytes:
     msg = pb.ClientMessage(protocol_version=PROTOCOL_VERSION)
     c = msg.control
-    c.kind, c.sequence, c.text, c.name, c.value = kind, sequence, text, name, float(value)
+    c.kind = kind  # type: ignore[assignment]  # an int of the enum (the stubs type it Kind)
+    c.sequence, c.text, c.name, c.value = sequence, text, name, float(value)
     return msg.SerializeToString()
 
 
