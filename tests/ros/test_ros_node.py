@@ -76,10 +76,10 @@ def main():
     args = ap.parse_args()
 
     try:
-        import rospy  # noqa: F401
-        from geometry_msgs.msg import PoseStamped, WrenchStamped  # noqa: F401
-        from std_msgs.msg import Float64MultiArray  # noqa: F401
-        from visualization_msgs.msg import Marker  # noqa: F401
+        import rospy
+        from geometry_msgs.msg import PoseStamped, WrenchStamped
+        from std_msgs.msg import Float64MultiArray
+        from visualization_msgs.msg import Marker
     except ImportError as e:
         print(f"SKIP: ROS 1 is not installed ({e}); Debian: apt-get install python3-rospy "
               "python3-rosmaster python3-geometry-msgs python3-std-msgs python3-visualization-msgs")
@@ -165,10 +165,6 @@ def main():
                                 stdout=open(os.path.join(tmp, "node.log"), "w"), stderr=subprocess.STDOUT)
         procs.append(node)
 
-        import rospy
-        from geometry_msgs.msg import PoseStamped, WrenchStamped
-        from std_msgs.msg import Float64MultiArray
-        from visualization_msgs.msg import Marker
         deadline = time.monotonic() + 15
         while True:  # the master takes a moment to listen
             try:
@@ -180,7 +176,7 @@ def main():
                 time.sleep(0.2)
 
         lock = threading.Lock()
-        wrenches, stiffness, markers = {}, {}, []
+        wrenches, markers = {}, []
         k_seq = []
 
         def on_wrench(w):
