@@ -532,6 +532,26 @@ State make_state(const Model& model) {
   for (size_t k = 0; k < model.probes.size(); ++k) s.probes[k].radius = model.probes[k].radius;
   s.planes.resize(model.planes.size());
   for (size_t k = 0; k < model.planes.size(); ++k) s.planes[k].offset = model.planes[k].offset;
+  // Active region: everything awake until the first tick chooses. Chunk entries are sized for the
+  // most a layout can have (one spring each).
+  const size_t nn = model.rest.size(), ns = model.rest_length.size();
+  RegionState& r = s.region;
+  r.awake.assign(nn, 1);
+  r.wake.assign(nn, 0);
+  r.active.assign(ns, 0);
+  r.active_scale = model.force_scale;
+  r.spring_on.assign(ns, 1);
+  r.chunk_awake.assign(ns, 1);
+  r.chunk_slow.assign(ns, 0);
+  r.chunk_active_count.assign(ns, 0);
+  r.awake_list.reserve(nn);
+  r.border.reserve(nn);
+  r.in_border.assign(nn, 0);
+  r.slow.reserve(ns);
+  r.slow_scale.assign(ns, 0.0);
+  r.flipped.reserve(nn);
+  r.impulse.assign(nn, Vec3::Zero());
+  for (auto* f : {&r.far_fx, &r.far_fy, &r.far_fz}) f->assign(nn, 0.0);
   return s;
 }
 

@@ -213,6 +213,60 @@ struct Counters {
   std::uint64_t awake_nodes = 0;    // active region: nodes integrated in the last tick
 };
 
+// A vector whose copies keep the capacity of their source, so that a copied State still pushes
+// into its reserved lists without allocating.
+template <class T>
+struct ReservedVector : std::vector<T> {
+  ReservedVector() = default;
+  ReservedVector(const ReservedVector& o) : std::vector<T>() { copy_from(o); }
+  ReservedVector(ReservedVector&&) noexcept = default;
+  ReservedVector& operator=(const ReservedVector& o) {
+    if (this != &o) copy_from(o);
+    return *this;
+  }
+  ReservedVector& operator=(ReservedVector&&) noexcept = default;
+
+ private:
+  void copy_from(const ReservedVector& o) {
+    this->clear();
+    this->reserve(o.capacity());
+    this->insert(this->end(), o.begin(), o.end());
+  }
+};
+
+// The active region's dynamic part (core/step.h): which nodes are awake, the lists built from
+// them (in the order they were built, which the force sums follow) and the multi-rate far field's
+// phase and pending sums. Sized by make_state; part of State, so a State copy is an exact
+// snapshot with the region on.
+struct RegionState {
+  std::vector<std::uint8_t> awake;      // (num_nodes) integrated this interval
+  std::vector<std::uint8_t> wake;       // (num_nodes) to be woken at the next choice
+  std::vector<int> active;              // (num_springs) first num_active: springs with an awake end
+  int num_active = -1;                  // -1: not chosen yet
+  std::vector<double> active_scale;     // (num_springs) force_scale, 0 if both ends sleep
+  std::vector<std::uint8_t> spring_on;  // (num_springs) the spring has an awake end
+  std::vector<std::uint8_t> chunk_awake;  // (chunks) a spring of the chunk has an awake end
+  std::vector<std::uint8_t> chunk_slow;   // (chunks) a spring of the chunk has both ends asleep
+  std::vector<int> chunk_active_count;    // (chunks) springs with an awake end
+  ReservedVector<int> awake_list;         // awake nodes
+  ReservedVector<int> border;             // sleeping nodes an awake spring touches
+  std::vector<std::uint8_t> in_border;    // (num_nodes)
+  ReservedVector<int> slow;               // springs with both ends asleep (no runs)
+  std::vector<double> slow_scale;         // (num_springs) force_scale if both ends sleep
+  ReservedVector<int> flipped;            // nodes that changed side in this update
+  // Multi-rate far field.
+  int far_phase = 0;                           // ticks into the current interval
+  std::vector<Vec3> impulse;                   // (num_nodes) N s from awake springs, this interval
+  std::vector<double> far_fx, far_fy, far_fz;  // (num_nodes) N, far springs' forces of this
+                                               // interval, summed over its ticks
+  int far_springs_evaluated = 0;               // springs the last tick's far share evaluated
+  double cost = 0;          // the last estimate of a multi-rate tick's cost (fraction of a step)
+  bool whole_body = false;  // the region costs about a whole step: every node steps every tick
+};
+
+// Everything that changes as a body steps: a copy is an exact snapshot, and stepping two copies
+// with the same inputs gives bit-identical states (the Workspace holds only what is derived from
+// the Model and per-stage scratch).
 struct State {
   double time = 0;  // s
   std::uint64_t tick = 0;
@@ -220,6 +274,7 @@ struct State {
   std::vector<double> maxwell;     // (num_springs) Maxwell dashpot deflection, card units
   std::vector<ProbeState> probes;  // (model.probes.size())
   std::vector<PlaneState> planes;  // (model.planes.size())
+  RegionState region;
   Counters counters;
 };
 

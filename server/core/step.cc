@@ -539,8 +539,8 @@ void semi_implicit_contact(const Model& m, Workspace& ws, double h) {
 
 // The active region decides what a tick touches: it is built and not handed over to whole-body
 // steps.
-bool region_in_use(const Model& m, const Workspace& ws) {
-  return m.options.active_region && ws.num_active >= 0 && !ws.whole_body;
+bool region_in_use(const Model& m, const State& s) {
+  return m.options.active_region && s.region.num_active >= 0 && !s.region.whole_body;
 }
 
 // Forces of the active region only: springs with an awake end, one at a time (scalar law). Sleeping
@@ -552,7 +552,7 @@ void forces_active(const Model& m, State& s, Workspace& ws) {
   // A large region goes chunk by chunk (chunks with an awake spring, whole; springs with both ends
   // asleep scaled to zero); a small one spring by spring from its list, since its springs are
   // spread over many chunks and the per-node passes of the chunk path cost more than they save.
-  const bool chunked = !ws.runs.empty() && 8 * ws.num_active > m.num_springs();
+  const bool chunked = !ws.runs.empty() && 8 * s.region.num_active > m.num_springs();
   if (chunked) {
     copy_positions(s.x, ws);
     std::fill(ws.fx.begin(), ws.fx.end(), 0.0);
@@ -560,23 +560,23 @@ void forces_active(const Model& m, State& s, Workspace& ws) {
     std::fill(ws.fz.begin(), ws.fz.end(), 0.0);
     std::int64_t slack = kNoRoom;
     for (size_t c = 0; c < ws.chunks.size(); ++c)
-      if (ws.chunk_awake[c])
-        chunk_forces(m, s, ws, ws.chunks[c], true, ws.active_scale.data(), &slack);
+      if (s.region.chunk_awake[c])
+        chunk_forces(m, s, ws, ws.chunks[c], true, s.region.active_scale.data(), &slack);
     for (int i = 0; i < nn; ++i) {
       const Vec3 f(ws.fx[i], ws.fy[i], ws.fz[i]);
-      ws.force[i] = ws.awake[i] ? Vec3(m.mass[i] * (m.options.gravity - mu * s.v[i]) + f) : f;
+      ws.force[i] = s.region.awake[i] ? Vec3(m.mass[i] * (m.options.gravity - mu * s.v[i]) + f) : f;
     }
   } else if (ws.far_every > 0) {
     // Multi-rate: only the awake nodes and the border can receive a force.
-    for (int i : ws.awake_list) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
-    for (int i : ws.border) ws.force[i].setZero();
+    for (int i : s.region.awake_list) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
+    for (int i : s.region.border) ws.force[i].setZero();
   } else {
     for (int i = 0; i < nn; ++i)
       ws.force[i] =
-          ws.awake[i] ? Vec3(m.mass[i] * (m.options.gravity - mu * s.v[i])) : Vec3::Zero();
+          s.region.awake[i] ? Vec3(m.mass[i] * (m.options.gravity - mu * s.v[i])) : Vec3::Zero();
   }
-  for (int q = 0; q < ws.num_active && !chunked; ++q) {
-    const int k = ws.active[q];
+  for (int q = 0; q < s.region.num_active && !chunked; ++q) {
+    const int k = s.region.active[q];
     const int i = m.spring_i[k], j = m.spring_j[k];
     const Vec3 u = s.x[j] - s.x[i];
     const double l = u.norm();
@@ -601,15 +601,15 @@ void forces_active(const Model& m, State& s, Workspace& ws) {
   if (ws.far_every > 0) return;  // the far field moves: its pull is no reason to wake
   const double f_tol = ws.node_stiffness * m.options.active_tolerance;
   for (int i = 0; i < nn; ++i)
-    if (!ws.awake[i] && m.fixed[i] != 7 && ws.force[i].squaredNorm() > f_tol * f_tol)
-      ws.wake[i] = 1;
+    if (!s.region.awake[i] && m.fixed[i] != 7 && ws.force[i].squaredNorm() > f_tol * f_tol)
+      s.region.wake[i] = 1;
 }
 
 void forces_impl(const Model& m, State& s, Workspace& ws, bool with_jacobian) {
   const int nn = m.num_nodes();
-  if (region_in_use(m, ws) && !with_jacobian) {
+  if (region_in_use(m, s) && !with_jacobian) {
     forces_active(m, s, ws);
-    contact_forces(m, s, ws, false, ws.far_every > 0 ? &ws.awake_list : nullptr);
+    contact_forces(m, s, ws, false, ws.far_every > 0 ? &s.region.awake_list : nullptr);
     return;
   }
   const double mu = m.options.mass_damping;
@@ -636,11 +636,11 @@ void relax_maxwell(const Model& m, State& s, double h) {
 // Projects springs shorter than their minimum length back to it (mass-weighted) and removes the
 // approaching part of their relative velocity.
 void hard_stop(const Model& m, State& s, Workspace& ws) {
-  if (region_in_use(m, ws) && m.options.integrator != Integrator::kImplicitEuler) {
+  if (region_in_use(m, s) && m.options.integrator != Integrator::kImplicitEuler) {
     // Only springs with an awake end can have moved.
     int n = 0;
-    for (int q = 0; q < ws.num_active; ++q) {
-      const int k = ws.active[q];
+    for (int q = 0; q < s.region.num_active; ++q) {
+      const int k = s.region.active[q];
       n += (s.x[m.spring_j[k]] - s.x[m.spring_i[k]]).dot(ws.dir(k)) < ws.min_length[k];
     }
     if (n > 0) hard_stop_project(m, s, ws);
@@ -687,15 +687,15 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
   forces_impl(m, s, ws, false);
   semi_implicit_contact(m, ws, h);
   const int nn = m.num_nodes();
-  if (!region_in_use(m, ws)) {
+  if (!region_in_use(m, s)) {
     advance_nodes(nn, h, symplectic, ws.force.front().data(), m.inv_mass.data(),
                   m.free_axes.front().data(), s.x.front().data(), s.v.front().data());
     return;
   }
   if (ws.far_every > 0) {
     // Multi-rate: the border keeps the impulse of the awake springs for its next far step.
-    for (int i : ws.border) ws.impulse[i] += h * ws.force[i];
-    for (int i : ws.awake_list) {
+    for (int i : s.region.border) s.region.impulse[i] += h * ws.force[i];
+    for (int i : s.region.awake_list) {
       if (m.fixed[i] == 7) continue;
       const Vec3 a = (ws.force[i] * m.inv_mass[i]).cwiseProduct(m.free_axes[i]);
       if (symplectic) {
@@ -709,7 +709,7 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
     return;
   }
   for (int i = 0; i < nn; ++i) {
-    if (m.fixed[i] == 7 || !ws.awake[i]) continue;
+    if (m.fixed[i] == 7 || !s.region.awake[i]) continue;
     const Vec3 a = (ws.force[i] * m.inv_mass[i]).cwiseProduct(m.free_axes[i]);
     if (symplectic) {
       s.v[i] += h * a;       // eq. (22)
@@ -788,8 +788,6 @@ Workspace::Workspace(const Model& m) {
     runs.clear();
     chunks.clear();
   }
-  chunk_awake.assign(chunks.size(), 1);
-  active_scale = m.force_scale;
   contact_n.assign(nn, Vec3::Zero());
   contact_block.assign(nn, Mat3::Zero());
   contact_nodes.assign(nn, 0);
@@ -817,10 +815,6 @@ Workspace::Workspace(const Model& m) {
       spread_coef.assign(m.hexahedra.size(), 0.0);
     }
   }
-  // Active region: everything awake until the first tick chooses.
-  awake.assign(nn, 1);
-  wake.assign(nn, 0);
-  active.assign(ns, 0);
   spring_group.assign(ns, 0);
   for (size_t g = 0; g < m.groups.size(); ++g)
     for (int k = m.groups[g].begin; k < m.groups[g].end; ++k) spring_group[k] = static_cast<int>(g);
@@ -914,13 +908,6 @@ Workspace::Workspace(const Model& m) {
       if (node_k[i] > 0)
         far_inv_mass[i] = std::min(m.inv_mass[i], (2 * 0.9) * (2 * 0.9) / (H * H * 2 * node_k[i]));
   }
-  awake_list.reserve(nn);
-  border.reserve(nn);
-  in_border.assign(nn, 0);
-  slow.reserve(ns);
-  impulse.assign(nn, Vec3::Zero());
-  for (auto* v : {&far_fx, &far_fy, &far_fz}) v->assign(nn, 0.0);
-  flipped.reserve(nn);
   node_spring_start.assign(nn + 1, 0);
   for (size_t k = 0; k < ns; ++k) {
     ++node_spring_start[m.spring_i[k] + 1];
@@ -935,13 +922,9 @@ Workspace::Workspace(const Model& m) {
       node_springs[fill[m.spring_j[k]]++] = static_cast<int>(k);
     }
   }
-  spring_on.assign(ns, 1);
   spring_chunk.assign(ns, 0);
   for (size_t c = 0; c < chunks.size(); ++c)
     for (int k = chunks[c].k0; k < chunks[c].k1; ++k) spring_chunk[k] = static_cast<int>(c);
-  chunk_active_count.assign(chunks.size(), 0);
-  slow_scale.assign(ns, 0.0);
-  chunk_slow.assign(chunks.size(), 0);
   for (const SpringGroup& g : m.groups) {
     for (int k = g.begin; k < g.end; ++k) {
       const double l0 = m.rest_length[k];
@@ -952,6 +935,17 @@ Workspace::Workspace(const Model& m) {
       min_length2[k] = lmin * lmin;
     }
   }
+}
+
+void options_changed(const Model& m, State& s, Workspace& ws) {
+  const int old_every = ws.far_every;
+  ws = Workspace(m);
+  if (ws.far_every == old_every) return;
+  RegionState& r = s.region;
+  r.far_phase = 0;
+  r.num_active = -1;
+  std::fill(r.impulse.begin(), r.impulse.end(), Vec3::Zero());
+  for (auto* f : {&r.far_fx, &r.far_fy, &r.far_fz}) std::fill(f->begin(), f->end(), 0.0);
 }
 
 double far_spectral_bound(const Model& m) {
@@ -1181,20 +1175,21 @@ void set_probe(State& state, int probe, const Vec3& center, bool active) {
 // is large, else its list at the scalar law's higher price per spring) plus one share of the far
 // springs. Checked against measured step times on the 21,952-node block and the liver
 // (docs/performance.md, "Active region").
-double region_cost(const Model& m, const Workspace& ws) {
+double region_cost(const Model& m, const State& s, const Workspace& ws) {
   const double ns = std::max(1, m.num_springs());
   const double N = std::max(1, ws.far_every);
-  if (ws.runs.empty()) return (ws.num_active + ws.slow.size() / N) / ns;
+  if (ws.runs.empty()) return (s.region.num_active + s.region.slow.size() / N) / ns;
   int awake = 0, slow = 0;
   for (size_t c = 0; c < ws.chunks.size(); ++c) {
-    awake += ws.chunk_awake[c];
-    slow += ws.chunk_slow[c];
+    awake += s.region.chunk_awake[c];
+    slow += s.region.chunk_slow[c];
   }
   const double C = std::max<size_t>(1, ws.chunks.size());
-  const bool chunked = 8 * ws.num_active > m.num_springs();
+  const bool chunked = 8 * s.region.num_active > m.num_springs();
   // The chunked path also passes over every node and checks the hard stop spring by spring along
   // the active list: about one listed spring's price per active spring.
-  return (chunked ? awake / C + ws.num_active / ns : kListSpringCost * ws.num_active / ns) +
+  return (chunked ? awake / C + s.region.num_active / ns
+                  : kListSpringCost * s.region.num_active / ns) +
          slow / C / N;
 }
 
@@ -1203,7 +1198,7 @@ double region_cost(const Model& m, const Workspace& ws) {
 void update_region(const Model& m, State& s, Workspace& ws) {
   const int nn = m.num_nodes();
   constexpr double kNu = 0.25;
-  bool changed = ws.num_active < 0;
+  bool changed = s.region.num_active < 0;
   double R[8], Rsleep[8];
   Vec3 c[8];
   int np = 0;
@@ -1224,7 +1219,7 @@ void update_region(const Model& m, State& s, Workspace& ws) {
     if (p.proxy_placed)
       for (int t : ws.probe_candidates[q])
         if (tool_touches(m, static_cast<int>(q), rp, p.proxy, s.x, t))
-          for (int i : m.surface[t]) ws.wake[i] = 1;
+          for (int i : m.surface[t]) s.region.wake[i] = 1;
   }
   int awake_count = 0;
   for (int i = 0; i < nn; ++i) {
@@ -1234,136 +1229,136 @@ void update_region(const Model& m, State& s, Workspace& ws) {
       near |= d2 < R[q] * R[q];
       keep |= d2 < Rsleep[q] * Rsleep[q];
     }
-    const std::uint8_t now = near || ws.wake[i] || (ws.awake[i] && keep);
-    if (now != ws.awake[i]) {
+    const std::uint8_t now = near || s.region.wake[i] || (s.region.awake[i] && keep);
+    if (now != s.region.awake[i]) {
       changed = true;
-      ws.flipped.push_back(i);                          // capacity reserved for every node
+      s.region.flipped.push_back(i);                    // capacity reserved for every node
       if (!now && ws.far_every <= 0) s.v[i].setZero();  // frozen: falls asleep at its state
-      ws.awake[i] = now;
+      s.region.awake[i] = now;
     }
-    ws.wake[i] = 0;
+    s.region.wake[i] = 0;
     awake_count += now;
   }
   s.counters.awake_nodes = awake_count;
-  const bool first = ws.num_active < 0;
+  const bool first = s.region.num_active < 0;
   if (!changed) return;
-  ws.awake_list.clear();  // capacities reserved for every node and spring: no allocation
+  s.region.awake_list.clear();  // capacities reserved for every node and spring: no allocation
   for (int i = 0; i < nn; ++i)
-    if (ws.awake[i]) ws.awake_list.push_back(i);
-  for (int i : ws.border) ws.in_border[i] = 0;
-  ws.border.clear();
-  ws.slow.clear();
+    if (s.region.awake[i]) s.region.awake_list.push_back(i);
+  for (int i : s.region.border) s.region.in_border[i] = 0;
+  s.region.border.clear();
+  s.region.slow.clear();
   const bool multirate = ws.far_every > 0;
   if (multirate && !ws.runs.empty() && !first) {
     // Lattices, multi-rate: only the springs of nodes that changed side change theirs, so the
     // per-spring scales and the per-chunk counts are updated from the node-spring adjacency, and
     // the active list and the border are rebuilt from the awake nodes' springs: O(awake springs)
     // instead of O(springs), so a tick that changes the region stays cheap.
-    for (int i : ws.flipped) {
+    for (int i : s.region.flipped) {
       for (int e = ws.node_spring_start[i]; e < ws.node_spring_start[i + 1]; ++e) {
         const int k = ws.node_springs[e];
-        const std::uint8_t on = ws.awake[m.spring_i[k]] || ws.awake[m.spring_j[k]];
-        if (on == ws.spring_on[k]) continue;
-        ws.spring_on[k] = on;
+        const std::uint8_t on = s.region.awake[m.spring_i[k]] || s.region.awake[m.spring_j[k]];
+        if (on == s.region.spring_on[k]) continue;
+        s.region.spring_on[k] = on;
         const int c = ws.spring_chunk[k];
-        ws.chunk_active_count[c] += on ? 1 : -1;
-        ws.active_scale[k] = on ? m.force_scale[k] : 0.0;
-        ws.slow_scale[k] = on ? 0.0 : m.force_scale[k];
+        s.region.chunk_active_count[c] += on ? 1 : -1;
+        s.region.active_scale[k] = on ? m.force_scale[k] : 0.0;
+        s.region.slow_scale[k] = on ? 0.0 : m.force_scale[k];
       }
     }
-    ws.flipped.clear();
+    s.region.flipped.clear();
     int n = 0;
-    for (int i : ws.awake_list) {
+    for (int i : s.region.awake_list) {
       for (int e = ws.node_spring_start[i]; e < ws.node_spring_start[i + 1]; ++e) {
         const int k = ws.node_springs[e];
         const int o = m.spring_i[k] == i ? m.spring_j[k] : m.spring_i[k];
-        if (!ws.awake[o]) {
-          if (!ws.in_border[o]) ws.border.push_back(o);
-          ws.in_border[o] = 1;
+        if (!s.region.awake[o]) {
+          if (!s.region.in_border[o]) s.region.border.push_back(o);
+          s.region.in_border[o] = 1;
         } else if (o < i) {
           continue;  // both awake: listed once, from the end with the smaller index
         }
-        ws.active[n++] = k;
+        s.region.active[n++] = k;
       }
     }
-    ws.num_active = n;
+    s.region.num_active = n;
     for (size_t c = 0; c < ws.chunks.size(); ++c) {
       const int size = ws.chunks[c].k1 - ws.chunks[c].k0;
-      ws.chunk_awake[c] = ws.chunk_active_count[c] > 0;
-      ws.chunk_slow[c] = ws.chunk_active_count[c] < size;
+      s.region.chunk_awake[c] = s.region.chunk_active_count[c] > 0;
+      s.region.chunk_slow[c] = s.region.chunk_active_count[c] < size;
     }
     return;
   }
-  ws.flipped.clear();
+  s.region.flipped.clear();
   int n = 0;
   for (int k = 0; k < m.num_springs(); ++k) {
     const int i = m.spring_i[k], j = m.spring_j[k];
-    const bool on = ws.awake[i] || ws.awake[j];
-    if (on) ws.active[n++] = k;
-    ws.active_scale[k] = on ? m.force_scale[k] : 0.0;
+    const bool on = s.region.awake[i] || s.region.awake[j];
+    if (on) s.region.active[n++] = k;
+    s.region.active_scale[k] = on ? m.force_scale[k] : 0.0;
     if (!multirate) continue;
-    ws.slow_scale[k] = on ? 0.0 : m.force_scale[k];
-    if (!on && ws.runs.empty()) ws.slow.push_back(k);
-    if (on && !(ws.awake[i] && ws.awake[j])) {
-      const int b = ws.awake[i] ? j : i;
-      if (!ws.in_border[b]) ws.border.push_back(b);
-      ws.in_border[b] = 1;
+    s.region.slow_scale[k] = on ? 0.0 : m.force_scale[k];
+    if (!on && ws.runs.empty()) s.region.slow.push_back(k);
+    if (on && !(s.region.awake[i] && s.region.awake[j])) {
+      const int b = s.region.awake[i] ? j : i;
+      if (!s.region.in_border[b]) s.region.border.push_back(b);
+      s.region.in_border[b] = 1;
     }
   }
-  ws.num_active = n;
+  s.region.num_active = n;
   for (size_t c = 0; c < ws.chunks.size(); ++c) {
     bool any = false, any_slow = false;
     int count = 0;
     for (int k = ws.chunks[c].k0; k < ws.chunks[c].k1; ++k) {
-      ws.spring_on[k] = ws.active_scale[k] != 0;
-      count += ws.spring_on[k];
-      any |= ws.active_scale[k] != 0;
-      any_slow |= multirate && ws.slow_scale[k] != 0;
+      s.region.spring_on[k] = s.region.active_scale[k] != 0;
+      count += s.region.spring_on[k];
+      any |= s.region.active_scale[k] != 0;
+      any_slow |= multirate && s.region.slow_scale[k] != 0;
     }
-    ws.chunk_active_count[c] = count;
-    ws.chunk_awake[c] = any;
-    ws.chunk_slow[c] = any_slow;
+    s.region.chunk_active_count[c] = count;
+    s.region.chunk_awake[c] = any;
+    s.region.chunk_slow[c] = any_slow;
   }
 }
 
 // The far field's forces over one interval, spread over its N ticks: tick `phase` evaluates the
 // springs between sleeping nodes of chunks (or list entries) [phase C / N, (phase + 1) C / N) and
-// sums their forces into ws.far_fx, far_fy, far_fz. Sleeping nodes do not move within an interval
-// (only the far step moves them), so every share sees the same far state, and the sum equals one
-// evaluation at the interval's end: no tick pays the whole far field. Far springs out of their
-// linear phase are marked to wake at the next interval.
+// sums their forces into s.region.far_fx, far_fy, far_fz. Sleeping nodes do not move within an
+// interval (only the far step moves them), so every share sees the same far state, and the sum
+// equals one evaluation at the interval's end: no tick pays the whole far field. Far springs out of
+// their linear phase are marked to wake at the next interval.
 void far_forces_part(const Model& m, State& s, Workspace& ws, int phase) {
   const int N = ws.far_every;
-  ws.far_springs_evaluated = 0;
+  s.region.far_springs_evaluated = 0;
   if (!ws.runs.empty()) {
     if (phase == 0) copy_positions(s.x, ws);  // the far state of this interval
     const int nc = static_cast<int>(ws.chunks.size());
     const int c0 = static_cast<int>(std::int64_t(nc) * phase / N);
     const int c1 = static_cast<int>(std::int64_t(nc) * (phase + 1) / N);
-    double* const out[3] = {ws.far_fx.data(), ws.far_fy.data(), ws.far_fz.data()};
+    double* const out[3] = {s.region.far_fx.data(), s.region.far_fy.data(), s.region.far_fz.data()};
     std::int64_t slack = kNoRoom;
     for (int c = c0; c < c1; ++c) {
-      if (!ws.chunk_slow[c]) continue;
+      if (!s.region.chunk_slow[c]) continue;
       const Workspace::Chunk& ch = ws.chunks[c];
-      chunk_forces(m, s, ws, ch, false, ws.slow_scale.data(), &slack, out);
-      ws.far_springs_evaluated += ch.k1 - ch.k0;
+      chunk_forces(m, s, ws, ch, false, s.region.slow_scale.data(), &slack, out);
+      s.region.far_springs_evaluated += ch.k1 - ch.k0;
       const double limit = ws.tangent_limit[ch.group];
       int stiff = 0;  // counted branch-free: the common case (none) costs a vectorised pass
       const double* __restrict tangent = ws.chunk_tangent.data();
       for (int t = 0; t < ch.k1 - ch.k0; ++t) stiff += tangent[t] > limit;
       if (stiff == 0) continue;
       for (int k = ch.k0; k < ch.k1; ++k)
-        if (ws.slow_scale[k] != 0 && ws.chunk_tangent[k - ch.k0] > limit)
-          ws.wake[m.spring_i[k]] = ws.wake[m.spring_j[k]] = 1;
+        if (s.region.slow_scale[k] != 0 && ws.chunk_tangent[k - ch.k0] > limit)
+          s.region.wake[m.spring_i[k]] = s.region.wake[m.spring_j[k]] = 1;
     }
     return;
   }
-  const int ns = static_cast<int>(ws.slow.size());
+  const int ns = static_cast<int>(s.region.slow.size());
   const int q0 = static_cast<int>(std::int64_t(ns) * phase / N);
   const int q1 = static_cast<int>(std::int64_t(ns) * (phase + 1) / N);
-  ws.far_springs_evaluated = q1 - q0;
+  s.region.far_springs_evaluated = q1 - q0;
   for (int q = q0; q < q1; ++q) {
-    const int k = ws.slow[q];
+    const int k = s.region.slow[q];
     const int i = m.spring_i[k], j = m.spring_j[k];
     const Vec3 u = s.x[j] - s.x[i];
     const double l = u.norm();
@@ -1381,14 +1376,14 @@ void far_forces_part(const Model& m, State& s, Workspace& ws, int phase) {
       load += g.card.damping * ddot + g.card.maxwell_k * (delta - s.maxwell[k]);
       tangent += g.card.maxwell_k;
     }
-    if (tangent > ws.tangent_limit[ws.spring_group[k]]) ws.wake[i] = ws.wake[j] = 1;
+    if (tangent > ws.tangent_limit[ws.spring_group[k]]) s.region.wake[i] = s.region.wake[j] = 1;
     const Vec3 f = m.force_scale[k] * load * d;
-    ws.far_fx[i] -= f.x();
-    ws.far_fy[i] -= f.y();
-    ws.far_fz[i] -= f.z();
-    ws.far_fx[j] += f.x();
-    ws.far_fy[j] += f.y();
-    ws.far_fz[j] += f.z();
+    s.region.far_fx[i] -= f.x();
+    s.region.far_fy[i] -= f.y();
+    s.region.far_fz[i] -= f.z();
+    s.region.far_fx[j] += f.x();
+    s.region.far_fy[j] += f.y();
+    s.region.far_fz[j] += f.z();
   }
 }
 
@@ -1400,15 +1395,15 @@ void far_step(const Model& m, State& s, Workspace& ws) {
   const int nn = m.num_nodes();
   const double H = ws.far_every * m.options.dt, mu = m.options.mass_damping;
   for (int i = 0; i < nn; ++i) {
-    const Vec3 spring(ws.far_fx[i], ws.far_fy[i], ws.far_fz[i]);
-    ws.far_fx[i] = ws.far_fy[i] = ws.far_fz[i] = 0;
-    if (ws.awake[i] || m.fixed[i] == 7) continue;
+    const Vec3 spring(s.region.far_fx[i], s.region.far_fy[i], s.region.far_fz[i]);
+    s.region.far_fx[i] = s.region.far_fy[i] = s.region.far_fz[i] = 0;
+    if (s.region.awake[i] || m.fixed[i] == 7) continue;
     const Vec3 f = m.mass[i] * (m.options.gravity - mu * s.v[i]) + spring;
-    s.v[i] += ((H * f + ws.impulse[i]) * ws.far_inv_mass[i]).cwiseProduct(m.free_axes[i]);
+    s.v[i] += ((H * f + s.region.impulse[i]) * ws.far_inv_mass[i]).cwiseProduct(m.free_axes[i]);
     s.x[i] += (H * s.v[i]).cwiseProduct(m.free_axes[i]);
-    ws.impulse[i].setZero();
+    s.region.impulse[i].setZero();
     for (size_t q = 0; q < m.planes.size(); ++q)
-      if (s.planes[q].offset - m.planes[q].normal.dot(s.x[i]) > 0) ws.wake[i] = 1;
+      if (s.planes[q].offset - m.planes[q].normal.dot(s.x[i]) > 0) s.region.wake[i] = 1;
   }
 }
 
@@ -1431,25 +1426,26 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
   // Multi-rate far field: the region is chosen at the start of an interval, the far field steps at
   // its end; in between only the awake nodes change, and only they are saved and checked.
   bool multirate = region && ws.far_every > 0;
-  if (region && (!multirate || ws.far_phase == 0 || ws.num_active < 0)) {
+  if (region && (!multirate || s.region.far_phase == 0 || s.region.num_active < 0)) {
     update_region(m, s, ws);
     // A region that costs about a whole step is not worth its bookkeeping: the whole body steps
     // every tick until the region's cost falls well below it (hysteresis). The switch happens at
     // an interval's start, when no far share or impulse is pending.
     if (multirate) {
-      ws.region_cost = region_cost(m, ws);
+      s.region.cost = region_cost(m, s, ws);
       const double enter = m.options.active_whole_body_cost;
-      ws.whole_body = ws.region_cost > (ws.whole_body ? kRegionResumeFraction * enter : enter);
+      s.region.whole_body =
+          s.region.cost > (s.region.whole_body ? kRegionResumeFraction * enter : enter);
     }
   }
-  if (multirate && ws.whole_body) {
+  if (multirate && s.region.whole_body) {
     multirate = false;
     s.counters.awake_nodes = static_cast<std::uint64_t>(m.num_nodes());
   }
-  const bool far_tick = multirate && ws.far_phase == ws.far_every - 1;
+  const bool far_tick = multirate && s.region.far_phase == ws.far_every - 1;
   const bool partial = multirate && !far_tick;
   if (partial) {
-    for (int i : ws.awake_list) {
+    for (int i : s.region.awake_list) {
       ws.good_x[i] = s.x[i];
       ws.good_v[i] = s.v[i];
     }
@@ -1474,16 +1470,16 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
     hard_stop(m, s, ws);
     relax_maxwell(m, s, h);
   }
-  if (multirate) far_forces_part(m, s, ws, ws.far_phase);
+  if (multirate) far_forces_part(m, s, ws, s.region.far_phase);
   if (far_tick) far_step(m, s, ws);
-  if (multirate) ws.far_phase = (ws.far_phase + 1) % ws.far_every;
+  if (multirate) s.region.far_phase = (s.region.far_phase + 1) % ws.far_every;
   ++s.counters.steps;
   ++s.tick;
   s.time += m.options.dt;
-  if (partial ? nodes_ok(m, s, ws.awake_list) : state_ok(m, s)) return StepStatus::kOk;
+  if (partial ? nodes_ok(m, s, s.region.awake_list) : state_ok(m, s)) return StepStatus::kOk;
   if (partial) {
-    for (int i : ws.awake_list) s.x[i] = ws.good_x[i];
-    for (int i : ws.border) ws.impulse[i].setZero();
+    for (int i : s.region.awake_list) s.x[i] = ws.good_x[i];
+    for (int i : s.region.border) s.region.impulse[i].setZero();
   } else {
     std::copy(ws.good_x.begin(), ws.good_x.end(), s.x.begin());
   }

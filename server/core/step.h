@@ -1,8 +1,11 @@
 // Advancing a body in time. A tick runs in named stages:
 //   probe input (already in State) -> spring forces -> element volume and shear terms (volume.h,
 //   when the model has them) -> contact -> integrate -> hard stop -> guard
-// All scratch lives in a Workspace sized once per model: a step allocates nothing, does no I/O
-// and never throws.
+// What is derived from the model and the stages' scratch live in a Workspace sized once per model;
+// everything that changes from tick to tick (the active region and the far field's pending sums
+// included) lives in State, so a State copy is an exact snapshot and a Workspace can be rebuilt or
+// shared at any tick (tests/core/snapshot_test.cc). A step allocates nothing, does no I/O and never
+// throws.
 //
 // Spring s between nodes i and j, u = x_j - x_i, l = |u|, d = u / l:
 //   deflection  delta = b (l0 - l)                (compression positive; b, a from the mapping)
@@ -138,47 +141,24 @@ struct Workspace {
   std::vector<double> sys_diag, sys_pre;           // (6 num_nodes) diagonal blocks, inverses
   std::vector<double> sys_rhs, sys_r, sys_z, sys_p, sys_ap, sys_dx;  // (3 num_nodes) PCG
   std::vector<double> sys_chunk;  // (6 kChunkSprings) a chunk's products/blocks
-  // Active region.
-  std::vector<std::uint8_t> awake, wake;  // (num_nodes)
-  std::vector<int> active;                // (num_springs) springs with an awake end
-  std::vector<int> spring_group;          // (num_springs) group of each spring
-  std::vector<double> active_scale;       // (num_springs) force_scale, 0 if both ends sleep
-  std::vector<std::uint8_t> chunk_awake;  // (chunks) a spring of the chunk has an awake end
-  int num_active = -1;                    // -1: region not built yet
-  double modulus = 0;                     // Pa, network estimate
-  double node_stiffness = 0;              // N/m, mean axial stiffness per node
+  // Active region (its dynamic part is State::region).
+  std::vector<int> spring_group;  // (num_springs) group of each spring
+  double modulus = 0;             // Pa, network estimate
+  double node_stiffness = 0;      // N/m, mean axial stiffness per node
   // Multi-rate far field.
-  int far_every = 0;                           // N ticks per far step; 0: frozen far field
-  int far_max_every = 1;                       // the far field's stability bound on N
-                                               // (Gershgorin, lightest node)
-  int measured_every = 0;                      // the bound from the measured spectrum (0: not
-                                               // measured: frozen or no active region)
-  double far_lambda = 0;                       // 1/s^2, largest eigenvalue of M^-1 K measured
-  double far_gamma = 0;                        // 1/s, the far step's explicit damping bound
-  double far_raise = 1;                        // inertia factor of every far node (measured)
-  int far_phase = 0;                           // ticks into the current interval
-  std::vector<int> awake_list;                 // awake nodes
-  std::vector<int> border;                     // sleeping nodes an awake spring touches
-  std::vector<std::uint8_t> in_border;         // (num_nodes)
-  std::vector<Vec3> impulse;                   // (num_nodes) N s from awake springs, this interval
-  std::vector<double> slow_scale;              // (num_springs) force_scale if both ends sleep
-  std::vector<int> slow;                       // springs with both ends asleep (no runs)
-  std::vector<std::uint8_t> chunk_slow;        // (chunks) a spring of the chunk has both asleep
-  std::vector<double> far_inv_mass;            // (num_nodes) 1/kg, inertia of a far step
-  std::vector<double> far_fx, far_fy, far_fz;  // (num_nodes) N, far springs' forces of this
-                                               // interval, summed over its ticks
-  int far_springs_evaluated = 0;               // springs the last tick's far share evaluated
-  double region_cost = 0;                      // the last estimate of a multi-rate tick's cost
-                                               // (fraction of a whole step)
-  bool whole_body = false;                     // the region costs about a whole step: every
-                                               // node steps every tick (multi-rate only)
+  int far_every = 0;                 // N ticks per far step; 0: frozen far field
+  int far_max_every = 1;             // the far field's stability bound on N
+                                     // (Gershgorin, lightest node)
+  int measured_every = 0;            // the bound from the measured spectrum (0: not
+                                     // measured: frozen or no active region)
+  double far_lambda = 0;             // 1/s^2, largest eigenvalue of M^-1 K measured
+  double far_gamma = 0;              // 1/s, the far step's explicit damping bound
+  double far_raise = 1;              // inertia factor of every far node (measured)
+  std::vector<double> far_inv_mass;  // (num_nodes) 1/kg, inertia of a far step
   // Incremental region updates (lattices, multi-rate).
   std::vector<int> node_spring_start, node_springs;  // (num_nodes + 1), (2 num_springs): springs
                                                      // of node i: [start[i], start[i + 1])
-  std::vector<int> flipped;                          // nodes that changed side in this update
-  std::vector<std::uint8_t> spring_on;               // (num_springs) the spring has an awake end
   std::vector<int> spring_chunk;                     // (num_springs) its chunk (runs path)
-  std::vector<int> chunk_active_count;               // (chunks) springs with an awake end
   std::vector<double> tangent_limit;                 // (groups) card units: far springs beyond wake
   bool has_maxwell = false;                          // a group has a Maxwell branch
   // Volume stiffness (model.bulk_modulus > 0): dV/dx of every element node at the last force
@@ -252,6 +232,13 @@ bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, do
 // server answers a probe update with between ticks. `candidates` as in update_proxy.
 void probe_contact(const Model& model, const std::vector<Vec3>& x, int k, const Vec3& center,
                    double radius, ProbeState* probe, std::vector<int>* candidates = nullptr);
+
+// After model.options changed between ticks (damping over the control socket, say): rebuilds the
+// Workspace from the model (what it derived from the options: the far field's interval and
+// inertia depend on the damping) and, if the far field's interval changed, restarts its interval
+// (pending far shares and impulses are dropped, the region is chosen again at the next tick).
+// Allocates: between ticks only.
+void options_changed(const Model& model, State& state, Workspace& ws);
 
 // Moves a probe (input stage). Inactive probes exert nothing.
 void set_probe(State& state, int probe, const Vec3& center, bool active = true);

@@ -206,7 +206,10 @@ void FixedRateLoop::apply(const Route& route, const ControlRequest& request) {
     bool ok = std::isfinite(v);
     switch (ok ? set->parameter : Parameter::kUnknown) {
       case Parameter::kDamping:
-        if ((ok = v >= 0)) m.options.mass_damping = v;
+        if ((ok = v >= 0)) {
+          m.options.mass_damping = v;
+          options_changed(m, s.state, *s.workspace);  // the far field's bounds depend on it
+        }
         break;
       case Parameter::kGravityX:
       case Parameter::kGravityY:

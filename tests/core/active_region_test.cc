@@ -41,10 +41,10 @@ TEST(ActiveRegionTest, FarProbeLeavesTheRegionAsleepAndANearPressWakesIt) {
   for (int i = 0; i < m.num_nodes(); ++i) {
     if (m.rest[i].x() >= 0.12) {
       ++far;
-      far_awake += ws.awake[i];
+      far_awake += s.region.awake[i];
       far_moved = std::max(far_moved, (s.x[i] - m.rest[i]).norm());
     }
-    if ((m.rest[i] - Press(0.02, 0)).norm() < 0.012) near_awake += ws.awake[i];
+    if ((m.rest[i] - Press(0.02, 0)).norm() < 0.012) near_awake += s.region.awake[i];
   }
   EXPECT_GT(near_awake, 0);
   EXPECT_EQ(far_awake, 0) << "of " << far;
@@ -59,7 +59,7 @@ TEST(ActiveRegionTest, FarProbeLeavesTheRegionAsleepAndANearPressWakesIt) {
   far_moved = 0;
   for (int i = 0; i < m.num_nodes(); ++i)
     if (m.rest[i].x() >= 0.12) {
-      far_awake += ws.awake[i];
+      far_awake += s.region.awake[i];
       far_moved = std::max(far_moved, (s.x[i] - m.rest[i]).norm());
     }
   EXPECT_GT(far_awake, 0);
@@ -184,28 +184,29 @@ TEST(ActiveRegionTest, FarStepIsSpreadOverItsInterval) {
     // Far springs of this interval (both ends asleep; lattices: springs of chunks holding one).
     long far = 0;
     if (ws.runs.empty()) {
-      far = static_cast<long>(ws.slow.size());
+      far = static_cast<long>(s.region.slow.size());
     } else {
       for (size_t c = 0; c < ws.chunks.size(); ++c)
-        if (ws.chunk_slow[c]) far += ws.chunks[c].k1 - ws.chunks[c].k0;
+        if (s.region.chunk_slow[c]) far += ws.chunks[c].k1 - ws.chunks[c].k0;
     }
     ASSERT_GT(far, 0);
     // The region's lists, updated incrementally, match a count from scratch.
     int on = 0, mismatched = 0;
     for (int k = 0; k < m.num_springs(); ++k) {
-      const bool awake_end = ws.awake[m.spring_i[k]] || ws.awake[m.spring_j[k]];
+      const bool awake_end = s.region.awake[m.spring_i[k]] || s.region.awake[m.spring_j[k]];
       on += awake_end;
-      mismatched += awake_end != (ws.active_scale[k] != 0) || awake_end == (ws.slow_scale[k] != 0);
+      mismatched += awake_end != (s.region.active_scale[k] != 0) ||
+                    awake_end == (s.region.slow_scale[k] != 0);
     }
     ASSERT_EQ(mismatched, 0) << "tick " << t;
-    ASSERT_EQ(ws.num_active, on) << "tick " << t;
+    ASSERT_EQ(s.region.num_active, on) << "tick " << t;
     // Shares are equal ranges of chunks (or of the far spring list): at most a quarter of the
     // springs plus one chunk.
-    EXPECT_LE(ws.far_springs_evaluated, m.num_springs() / 4 + slack) << "tick " << t;
+    EXPECT_LE(s.region.far_springs_evaluated, m.num_springs() / 4 + slack) << "tick " << t;
     last_far = far;
-    worst_share = std::max(worst_share, ws.far_springs_evaluated);
-    in_interval += ws.far_springs_evaluated;
-    if (ws.far_phase == 0) {  // an interval ended with this tick
+    worst_share = std::max(worst_share, s.region.far_springs_evaluated);
+    in_interval += s.region.far_springs_evaluated;
+    if (s.region.far_phase == 0) {  // an interval ended with this tick
       EXPECT_EQ(in_interval, far) << "tick " << t;
       in_interval = 0;
       ++intervals;
@@ -273,12 +274,12 @@ TEST(ActiveRegionTest, ARegionAsCostlyAsTheWholeBodyStepsTheWholeBodyUntilItShri
   int whole = 0;
   for (int t = 0; t < 600; ++t) {
     run.tick(t);
-    whole += ws.whole_body;
+    whole += s.region.whole_body;
   }
   std::printf("whole body on %d of 600 ticks, last cost estimate %.2f, force error %.3g %%\n",
-              whole, ws.region_cost, 100 * run.err / run.fmax);
-  EXPECT_TRUE(ws.whole_body);
-  EXPECT_GT(ws.region_cost, kRegionResumeFraction * m.options.active_whole_body_cost);
+              whole, s.region.cost, 100 * run.err / run.fmax);
+  EXPECT_TRUE(s.region.whole_body);
+  EXPECT_GT(s.region.cost, kRegionResumeFraction * m.options.active_whole_body_cost);
   EXPECT_EQ(s.counters.awake_nodes, static_cast<std::uint64_t>(m.num_nodes()));
   ASSERT_GT(run.fmax, 0);
   EXPECT_LT(run.err / run.fmax, 0.01);
@@ -287,8 +288,8 @@ TEST(ActiveRegionTest, ARegionAsCostlyAsTheWholeBodyStepsTheWholeBodyUntilItShri
     set_probe(s, 0, Vec3(0.08, 0.02, 0.1), false);
     step(m, s, ws);
   }
-  EXPECT_FALSE(ws.whole_body);
-  EXPECT_LT(ws.region_cost, kRegionResumeFraction * m.options.active_whole_body_cost);
+  EXPECT_FALSE(s.region.whole_body);
+  EXPECT_LT(s.region.cost, kRegionResumeFraction * m.options.active_whole_body_cost);
   EXPECT_LT(s.counters.awake_nodes, static_cast<std::uint64_t>(m.num_nodes()) / 2);
   EXPECT_EQ(s.counters.rollbacks, 0u);
 }

@@ -135,14 +135,14 @@ TEST(AllocationTest, ActiveRegionStepAllocatesNothing) {
       const bool on = i < 400;
       set_probe(s, 0, Vec3(0.02, 0.015, 0.025 - 1e-5 * std::min(i, 200)), on);
       step(m, s, ws);
-      whole += ws.whole_body;
-      region += !ws.whole_body;
+      whole += s.region.whole_body;
+      region += !s.region.whole_body;
     }
   });
   EXPECT_EQ(allocations, 0);
   EXPECT_GT(whole, 0);
   EXPECT_GT(region, 0);
-  EXPECT_FALSE(ws.whole_body);
+  EXPECT_FALSE(s.region.whole_body);
 }
 
 }  // namespace

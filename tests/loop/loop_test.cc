@@ -254,6 +254,26 @@ TEST_F(LoopTest, CommandsAreAppliedBetweenTicks) {
   EXPECT_LT(twin.state.x[twin.model.num_nodes() - 1].z(), 0.01);  // it did sag
 }
 
+TEST_F(LoopTest, DampingSetBetweenTicksRebuildsWhatTheStepDerivedFromIt) {
+  // Multi-rate active region: the far field's interval and inertia come from the damping.
+  BodySpec spec = Large();
+  spec.options.active_region = true;
+  spec.options.active_far_every = 0;
+  Start({}, spec);
+  const double gamma_before = loop_->scene()->workspace->far_gamma;
+  transport_.send_control(At(3.5), 8, 1, SetParameter{Parameter::kDamping, 400});
+  TickTo(6);
+  const Scene& scene = *loop_->scene();
+  ASSERT_EQ(scene.model->options.mass_damping, 400);
+  const Workspace fresh(*scene.model);  // what a scene loaded with this damping would step with
+  EXPECT_EQ(scene.workspace->far_gamma, fresh.far_gamma);
+  EXPECT_EQ(scene.workspace->far_every, fresh.far_every);
+  EXPECT_EQ(scene.workspace->far_raise, fresh.far_raise);
+  EXPECT_EQ(scene.workspace->measured_every, fresh.measured_every);
+  EXPECT_GT(fresh.far_gamma, gamma_before + 300) << "the far field's damping bound must follow";
+  EXPECT_LT(scene.state.region.far_phase, std::max(1, fresh.far_every));
+}
+
 TEST_F(LoopTest, BadMessagesAreAnsweredCountedAndChangeNothing) {
   Start();
   const Vec3 good = Pressed(0.01, 0.01, 0.01, 1e-3);

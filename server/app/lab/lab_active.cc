@@ -115,8 +115,8 @@ void register_active_region(CLI::App& app, Runner* run) {
           r.tick_us.push_back(1e6 * dt_s);
           for (const ProbeState& p : s.probes) r.force.push_back(p.force);
           r.awake_sum += m.options.active_region ? s.counters.awake_nodes : m.num_nodes();
-          r.whole_body_ticks += ws.whole_body;
-          r.cost_sum += ws.region_cost;
+          r.whole_body_ticks += s.region.whole_body;
+          r.cost_sum += s.region.cost;
         }
         r.rollbacks = s.counters.rollbacks;
         r.far_every = ws.far_every;
