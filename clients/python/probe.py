@@ -8,10 +8,11 @@ and writes t,probe,seq,x,y,z,fx,fy,fz,contact,rtt_us (s, m, N, us). Needs the pa
     .venv/bin/python clients/python/probe.py --out press.csv
 
 Against a CURVE server (conica-server --curve-server-key K --curve-clients DIR) give the
-server's public key file and this client's key pair file, both as written by
-conica-server --generate-keys DIR --key-name NAME (the server lists NAME.pub):
+server's public certificate and this client's secret certificate, ZeroMQ certificates as
+conica-keygen DIR NAME (or pyzmq's zmq.auth.create_certificates) writes them (the server lists
+NAME.key):
 
-    ... probe.py --curve-server-pub keys/server.pub --curve-key keys/alice.key
+    ... probe.py --curve-server-pub keys/server.key --curve-key keys/alice.key_secret
 """
 import argparse
 import csv
@@ -38,9 +39,9 @@ def main():
     ap.add_argument("--timeout-ms", type=int, default=2000)
     ap.add_argument("--out", default="-", help="CSV file ('-': stdout)")
     ap.add_argument("--curve-server-pub", metavar="FILE",
-                    help="CURVE: the server's public key file (its .pub from conica-server --generate-keys)")
+                    help="CURVE: the server's public certificate (its NAME.key, not NAME.key_secret)")
     ap.add_argument("--curve-key", metavar="FILE",
-                    help="CURVE: this client's key pair file (its .key; the server lists its .pub)")
+                    help="CURVE: this client's secret certificate NAME.key_secret (the server lists its NAME.key)")
     args = ap.parse_args()
     curve = None
     if args.curve_server_pub or args.curve_key:

@@ -2,9 +2,10 @@
 //   conica-server                       built-in cube on the default loopback endpoints
 //   conica-server --scene FILE          a scene file
 //   conica-server --builtin liver --probe-endpoint tcp://127.0.0.1:6000 --seconds 10
-//   conica-server --generate-keys keys --key-name server      keys/server.key, keys/server.pub
-//   conica-server --curve-server-key keys/server.key --curve-clients keys/clients
-//                                       CURVE: encrypted, only clients with a key in keys/clients
+//   conica-server --generate-keys keys --key-name server      keys/server.key (public
+//                                       certificate), keys/server.key_secret (secret)
+//   conica-server --curve-server-key keys/server.key_secret --curve-clients keys/clients
+//                                       CURVE: encrypted, only clients with a NAME.key there
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
@@ -79,13 +80,15 @@ int main(int argc, char** argv) {
                "run the ZeroMQ I/O threads SCHED_FIFO (priority 80), also with --no-realtime");
   std::string curve_key, curve_clients, generate_dir, key_name = "server";
   app.add_option("--curve-server-key", curve_key,
-                 "CURVE: the server's key file (public + secret, from --generate-keys)")
+                 "CURVE: the server's secret certificate NAME.key_secret (from "
+                 "--generate-keys, conica-keygen or pyzmq's zmq.auth.create_certificates)")
       ->check(CLI::ExistingFile);
   app.add_option("--curve-clients", curve_clients,
-                 "CURVE: folder of authorised client public keys, one NAME.pub per client")
+                 "CURVE: folder of authorised clients' public certificates, one NAME.key each")
       ->check(CLI::ExistingDirectory);
   app.add_option("--generate-keys", generate_dir,
-                 "write a new CURVE key pair DIR/NAME.key (private) and DIR/NAME.pub, then exit");
+                 "write new CURVE certificates DIR/NAME.key (public) and DIR/NAME.key_secret "
+                 "(secret), then exit");
   app.add_option("--key-name", key_name, "file name of --generate-keys (default: server)");
   app.get_option("--curve-server-key")->needs("--curve-clients");
   app.get_option("--curve-clients")->needs("--curve-server-key");
@@ -103,14 +106,20 @@ int main(int argc, char** argv) {
       spdlog::error("{}", e);
       return 1;
     }
-    std::printf("%s/%s.key (keep private)\n%s/%s.pub public %s\n", generate_dir.c_str(),
-                key_name.c_str(), generate_dir.c_str(), key_name.c_str(), kp.public_key.c_str());
+    std::printf(
+        "%s/%s.key_secret (secret certificate: keep private)\n%s/%s.key (public "
+        "certificate: hand out) public-key %s\n",
+        generate_dir.c_str(), key_name.c_str(), generate_dir.c_str(), key_name.c_str(),
+        kp.public_key.c_str());
     return 0;
   }
   if (!curve_key.empty()) {
     conica::net::CurveKeyPair kp;
     std::string e = conica::net::read_key_file(curve_key, &kp);
-    if (e.empty() && kp.secret_key.empty()) e = curve_key + ": no secret key (give the .key file)";
+    if (e.empty() && kp.secret_key.empty())
+      e = curve_key +
+          ": a public certificate (no secret key); give the server its secret "
+          "certificate (NAME.key_secret)";
     if (e.empty()) e = conica::net::read_client_keys(curve_clients, &opt.curve_client_keys);
     if (!e.empty()) {
       spdlog::error("{}", e);

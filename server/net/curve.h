@@ -1,12 +1,23 @@
 // Optional ZeroMQ CURVE security for the server's sockets: encryption plus authentication of
 // clients by their long-term public key (libzmq built with libsodium; see curve_available()).
 //
-// Keys are Z85 text (40 characters for 32 bytes). Key files are text, one key per line,
-// '#' comments allowed:
-//   NAME.key   "public <z85>" and "secret <z85>"  (mode 0600; the secret never leaves it)
-//   NAME.pub   "public <z85>"                      (what the other side is given)
-// The server reads its NAME.key (--curve-server-key) and a folder with one .pub file per
-// authorised client (--curve-clients). A client needs the server's .pub and its own .key.
+// Keys are Z85 text (40 characters for 32 bytes), kept in ZeroMQ certificates: the ZPL text
+// files czmq's zcert writes and pyzmq's zmq.auth reads (create_certificates,
+// load_certificate), with their naming:
+//   NAME.key         the PUBLIC certificate: what the other side is given
+//                      metadata
+//                      curve
+//                          public-key = "<z85>"
+//   NAME.key_secret  the SECRET certificate (mode 0600; never handed out): the same plus
+//                          secret-key = "<z85>"
+// The server reads its NAME.key_secret (--curve-server-key) and a folder of public
+// certificates, one NAME.key per authorised client (--curve-clients; NAME.key_secret files
+// there are ignored, as zmq.auth.load_certificates does). A client needs the server's NAME.key
+// and its own NAME.key_secret. Certificates made by pyzmq or czmq work as they are.
+//
+// Key files of conica before the certificates ("public <z85>" / "secret <z85>" lines, with
+// NAME.key the SECRET file and NAME.pub the public one) are refused with a message saying so
+// and the command that converts them (conica-keygen --convert FILE, convert_old_key_file()).
 //
 // Authentication runs in a ZAP handler (RFC 27): a REP socket bound on
 // inproc://zeromq.zap.01 in the server's context, answered by a thread of its own. It accepts a
@@ -35,12 +46,26 @@ struct CurveKeyPair {
 
 // A fresh key pair; returns an error message or "".
 std::string generate_keypair(CurveKeyPair* out);
-// Writes DIR/NAME.key (0600) and DIR/NAME.pub; refuses to overwrite. Error message or "".
+// Writes the certificates DIR/NAME.key (public) and DIR/NAME.key_secret (public and secret,
+// 0600); refuses to overwrite either. Error message or "".
 std::string write_keypair(const std::string& dir, const std::string& name, const CurveKeyPair& kp);
-// Reads a key file; fills what it holds (a .pub has no secret). Error message or "".
+// Reads a certificate; fills what it holds (a public certificate has no secret). Errors name
+// the file, the line where there is one, and the problem; an old conica key file is refused
+// with what it is and how to convert it. Error message or "".
 std::string read_key_file(const std::string& path, CurveKeyPair* out);
-// The public keys of every *.pub file in `dir` (at least one). Error message or "".
+// The public keys of every NAME.key certificate in `dir` (at least one; NAME.key_secret files
+// are skipped, a certificate holding a secret key or an old NAME.pub is refused). Error message
+// or "".
 std::string read_client_keys(const std::string& dir, std::vector<std::string>* public_keys);
+// The text of a certificate: public only, or public and secret when `with_secret`.
+std::string certificate_text(const CurveKeyPair& kp, bool with_secret);
+// Does `path` hold an old conica key file ("public <z85>" / "secret <z85>" lines)?
+bool is_old_key_file(const std::string& path);
+// Converts an old conica key file: from a key pair (old NAME.key) writes NAME.key_secret and
+// replaces NAME.key with the public certificate; from an old NAME.pub writes the public
+// certificate NAME.key and removes NAME.pub. `done` gets one line per file written or removed.
+// Refuses to overwrite a certificate that holds a different key. Error message or "".
+std::string convert_old_key_file(const std::string& path, std::vector<std::string>* done);
 // Is `key` 40 characters of valid Z85 that decode to 32 bytes?
 bool valid_z85_key(const std::string& key);
 

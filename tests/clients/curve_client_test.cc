@@ -1,5 +1,6 @@
-// The clients' CURVE options (clients/cpp/client/connection.h): key files written by
-// conica-server --generate-keys are read with errors naming the file and the problem; a client
+// The clients' CURVE options (clients/cpp/client/connection.h): the certificates
+// conica-server --generate-keys writes (NAME.key public, NAME.key_secret secret) are read with
+// errors naming the file and the problem; a client
 // whose key the server lists gets physically sensible force replies from an in-process CURVE
 // server, a client with an unknown key gets nothing within a bounded wait.
 #include <gtest/gtest.h>
@@ -83,35 +84,52 @@ TEST_F(CurveClientTest, KeyFileErrorsNameTheFileAndTheProblem) {
   CurveClient c;
   EXPECT_EQ(load_curve_client("", "", &c), "");
   EXPECT_FALSE(c.enabled());
-  EXPECT_NE(load_curve_client(File("server.pub"), "", &c).find("needs --curve-key"),
+  EXPECT_NE(load_curve_client(File("server.key"), "", &c).find("needs --curve-key"),
             std::string::npos);
-  EXPECT_NE(load_curve_client("", File("clients/alice.key"), &c).find("needs --curve-server-pub"),
-            std::string::npos);
-  EXPECT_EQ(
-      load_curve_client(File("missing.pub"), File("clients/alice.key"), &c),
-      File("missing.pub") + ": cannot open key file (--curve-server-pub: the server's .pub file)");
-  EXPECT_EQ(load_curve_client(File("server.pub"), File("missing.key"), &c),
-            File("missing.key") + ": cannot open key file (--curve-key: this client's .key file)");
-  // The server's secret key file given to a client.
+  EXPECT_NE(
+      load_curve_client("", File("clients/alice.key_secret"), &c).find("needs --curve-server-pub"),
+      std::string::npos);
+  EXPECT_EQ(load_curve_client(File("missing.key"), File("clients/alice.key_secret"), &c),
+            File("missing.key") +
+                ": cannot open key file (--curve-server-pub: the server's public certificate "
+                "NAME.key)");
+  EXPECT_EQ(load_curve_client(File("server.key"), File("missing.key_secret"), &c),
+            File("missing.key_secret") +
+                ": cannot open key file (--curve-key: this client's secret certificate "
+                "NAME.key_secret)");
+  // The server's secret certificate given to a client.
+  EXPECT_EQ(load_curve_client(File("server.key_secret"), File("clients/alice.key_secret"), &c),
+            File("server.key_secret") +
+                ": holds the server's secret key; give the client the server's public "
+                "certificate (NAME.key, not NAME.key_secret)");
+  // The client's public certificate instead of its secret one.
   EXPECT_EQ(load_curve_client(File("server.key"), File("clients/alice.key"), &c),
-            File("server.key") +
-                ": holds the server's secret key; give the client the server's .pub file");
-  // The client's .pub instead of its .key.
-  EXPECT_EQ(load_curve_client(File("server.pub"), File("clients/alice.pub"), &c),
-            File("clients/alice.pub") +
-                ": no secret key; give this client's .key file (public and secret), not its .pub");
-  // A damaged key: the line is named.
-  std::ofstream(File("damaged.key")) << "# mine\npublic 0123456789\n";
-  EXPECT_EQ(load_curve_client(File("server.pub"), File("damaged.key"), &c),
-            File("damaged.key") +
-                ":2: expected 'public <z85 key>' or 'secret <z85 key>' (--curve-key: this client's "
-                ".key file)");
-  std::ofstream(File("empty.pub")) << "# nothing here\n";
-  EXPECT_EQ(
-      load_curve_client(File("empty.pub"), File("clients/alice.key"), &c),
-      File("empty.pub") + ": no key in the file (--curve-server-pub: the server's .pub file)");
+            File("clients/alice.key") +
+                ": a public certificate (no secret key); give this client's secret certificate "
+                "(NAME.key_secret), not its NAME.key");
+  // A damaged certificate: the line is named.
+  std::ofstream(File("damaged.key_secret")) << "# mine\ncurve\n    secret-key = \"0123456789\"\n";
+  EXPECT_EQ(load_curve_client(File("server.key"), File("damaged.key_secret"), &c),
+            File("damaged.key_secret") +
+                ":3: secret-key is not a z85 CURVE key (40 characters of Z85 for 32 bytes) "
+                "(--curve-key: this client's secret certificate NAME.key_secret)");
+  std::ofstream(File("empty.key")) << "# nothing here\n";
+  EXPECT_EQ(load_curve_client(File("empty.key"), File("clients/alice.key_secret"), &c),
+            File("empty.key") +
+                ": no curve/public-key in the file (a ZeroMQ certificate has a 'curve' section "
+                "with public-key = \"<z85>\") (--curve-server-pub: the server's public "
+                "certificate NAME.key)");
+  // An old conica key pair file: what it is and the command that converts it.
+  net::CurveKeyPair pair;
+  ASSERT_EQ(net::generate_keypair(&pair), "");
+  std::ofstream(File("old.key")) << "# conica CURVE key pair: keep this file private\npublic "
+                                 << pair.public_key << "\nsecret " << pair.secret_key << "\n";
+  const std::string old = load_curve_client(File("server.key"), File("old.key"), &c);
+  EXPECT_NE(old.find(File("old.key") + ": an old conica key file"), std::string::npos) << old;
+  EXPECT_NE(old.find("`conica-keygen --convert " + File("old.key") + "`"), std::string::npos)
+      << old;
   EXPECT_FALSE(c.enabled());
-  ASSERT_EQ(load_curve_client(File("server.pub"), File("clients/alice.key"), &c), "");
+  ASSERT_EQ(load_curve_client(File("server.key"), File("clients/alice.key_secret"), &c), "");
   EXPECT_TRUE(c.enabled());
   EXPECT_TRUE(net::valid_z85_key(c.server_public));
   EXPECT_TRUE(net::valid_z85_key(c.keys.secret_key));
@@ -121,7 +139,7 @@ TEST_F(CurveClientTest, AuthorisedClientGetsForcesUnknownClientGetsNothing) {
   StartServer();
   const net::Endpoints ep = server_->endpoints();
   CurveClient alice;
-  ASSERT_EQ(load_curve_client(File("server.pub"), File("clients/alice.key"), &alice), "");
+  ASSERT_EQ(load_curve_client(File("server.key"), File("clients/alice.key_secret"), &alice), "");
 
   ProbeConnection conn(ctx_, ep.probe, 5, alice);
   ForceSample f;
@@ -154,7 +172,7 @@ TEST_F(CurveClientTest, AuthorisedClientGetsForcesUnknownClientGetsNothing) {
 
   // A valid key pair that the server does not list: no reply, and the wait ends on time.
   CurveClient mallory;
-  ASSERT_EQ(load_curve_client(File("server.pub"), File("other/mallory.key"), &mallory), "");
+  ASSERT_EQ(load_curve_client(File("server.key"), File("other/mallory.key_secret"), &mallory), "");
   ProbeConnection stranger(ctx_, ep.probe, 6, mallory);
   const std::int64_t t0 = now_ns();
   EXPECT_FALSE(Probe(stranger, 1, Vec3(kNode, kNode, kTop + kRadius - 1e-3), 1.5, &f))

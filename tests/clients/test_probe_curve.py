@@ -1,10 +1,11 @@
 #!/usr/bin/python3
-"""clients/python/probe.py against a CURVE server: keys from conica-server --generate-keys, the
-server started with --curve-server-key and --curve-clients on ephemeral loopback ports.
+"""clients/python/probe.py against a CURVE server: certificates from conica-server
+--generate-keys (NAME.key public, NAME.key_secret secret), the server started with
+--curve-server-key and --curve-clients on ephemeral loopback ports.
 
 A listed client key presses the built-in cube and records an upward force growing with depth;
 an unknown key gets no reply (probe.py gives up after its timeout, the server logs the refusal);
-damaged key files are refused naming the file.
+damaged, swapped or old-format key files are refused naming the file.
 
     build/python/venv/bin/python tests/clients/test_probe_curve.py \\
         --server build/bin/conica-server --probe-py clients/python/probe.py
@@ -44,7 +45,7 @@ class ProbeCurveTest(unittest.TestCase):
             assert r.returncode == 0, r.stdout + r.stderr
         cls.server = conica.LocalServer(
             SERVER, builtin="cube", seconds=120,
-            args=("--curve-server-key", os.path.join(cls.dir, "server.key"),
+            args=("--curve-server-key", os.path.join(cls.dir, "server.key_secret"),
                   "--curve-clients", os.path.join(cls.dir, "clients")))
 
     @classmethod
@@ -56,7 +57,7 @@ class ProbeCurveTest(unittest.TestCase):
     def path(self, name):
         return os.path.join(self.dir, name)
 
-    def probe(self, key, server_pub="server.pub", extra=()):
+    def probe(self, key, server_pub="server.key", extra=()):
         return run([sys.executable, PROBE_PY, "--endpoint", self.server.probe_endpoint,
                     "--at", f"{NODE_XY},{NODE_XY},{TOP + RADIUS}", "--depth", "0.002",
                     "--approach", "0.002", "--steps", "40", "--hold", "5",
@@ -64,7 +65,7 @@ class ProbeCurveTest(unittest.TestCase):
                     *extra])
 
     def test_listed_key_presses_and_feels_the_body(self):
-        r = self.probe("clients/alice.key")
+        r = self.probe("clients/alice.key_secret")
         self.assertEqual(r.returncode, 0, r.stderr)
         rows = list(csv.DictReader(io.StringIO(r.stdout)))
         self.assertEqual(len(rows), 46)
@@ -80,7 +81,7 @@ class ProbeCurveTest(unittest.TestCase):
 
     def test_unknown_key_gets_no_reply(self):
         t0 = time.monotonic()
-        r = self.probe("other/mallory.key", extra=("--timeout-ms", "1000"))
+        r = self.probe("other/mallory.key_secret", extra=("--timeout-ms", "1000"))
         self.assertLess(time.monotonic() - t0, 20)
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("no reply", r.stderr)
@@ -91,18 +92,30 @@ class ProbeCurveTest(unittest.TestCase):
         self.assertTrue(any("CURVE: refused" in l for l in self.server.lines), "".join(self.server.lines))
 
     def test_bad_key_files_are_named(self):
-        r = self.probe("clients/alice.pub")
+        r = self.probe("clients/alice.key")  # the public certificate
         self.assertNotEqual(r.returncode, 0)
-        self.assertIn(self.path("clients/alice.pub") + ": no secret key", r.stderr)
-        r = self.probe("clients/alice.key", server_pub="server.key")
-        self.assertIn(self.path("server.key") + ": holds the server's secret key", r.stderr)
-        with open(self.path("bad.key"), "w") as f:
-            f.write("# damaged\npublic abc\n")
-        r = self.probe("bad.key")
-        self.assertIn(self.path("bad.key") + ":2: expected 'public <z85 key>' or 'secret <z85 key>'",
+        self.assertIn(self.path("clients/alice.key") + ": a public certificate (no secret key)",
                       r.stderr)
-        r = self.probe("missing.key")
-        self.assertIn(self.path("missing.key") + ": cannot open key file", r.stderr)
+        r = self.probe("clients/alice.key_secret", server_pub="server.key_secret")
+        self.assertIn(self.path("server.key_secret") + ": holds the server's secret key", r.stderr)
+        with open(self.path("bad.key_secret"), "w") as f:
+            f.write("# damaged\ncurve\n    public-key = \"abc\"\n")
+        r = self.probe("bad.key_secret")
+        self.assertIn(self.path("bad.key_secret") + ":3: public-key is not a z85 CURVE key",
+                      r.stderr)
+        r = self.probe("missing.key_secret")
+        self.assertIn(self.path("missing.key_secret") + ": cannot open key file", r.stderr)
+
+    def test_old_key_file_is_refused_with_the_conversion(self):
+        with open(self.path("clients/alice.key_secret")) as f:
+            keys = {w[0]: w[2].strip('"') for w in (l.split() for l in f) if len(w) == 3}
+        with open(self.path("old.key"), "w") as f:
+            f.write("# conica CURVE key pair: keep this file private\n"
+                    f"public {keys['public-key']}\nsecret {keys['secret-key']}\n")
+        r = self.probe("old.key")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn(self.path("old.key") + ": an old conica key file", r.stderr)
+        self.assertIn("`conica-keygen --convert " + self.path("old.key") + "`", r.stderr)
 
 
 if __name__ == "__main__":

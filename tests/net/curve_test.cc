@@ -1,5 +1,7 @@
-// CURVE access control (server/net/curve.h): key files round-trip, a listed client key is served
-// on every socket, an unknown key and a plain (non-CURVE) client get nothing and are counted.
+// CURVE access control (server/net/curve.h): certificates round-trip in the ZeroMQ format
+// (pyzmq's and czmq's files read as they are, old conica key files refused and converted), a
+// listed client key is served on every socket, an unknown key and a plain (non-CURVE) client
+// get nothing and are counted.
 #include "net/curve.h"
 
 #include <gtest/gtest.h>
@@ -8,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <optional>
+#include <sstream>
 #include <thread>
 
 #include "net/builtin_scenes.h"
@@ -60,7 +63,7 @@ class CurveTest : public ::testing::Test {
 
   void StartServer() {
     CurveKeyPair sk;
-    ASSERT_EQ(read_key_file((dir_ / "server.key").string(), &sk), "");
+    ASSERT_EQ(read_key_file((dir_ / "server.key_secret").string(), &sk), "");
     ServerOptions opt;
     opt.probe_endpoint = opt.state_endpoint = opt.control_endpoint = "tcp://127.0.0.1:*";
     opt.log_period_s = 0;
@@ -88,29 +91,160 @@ class CurveTest : public ::testing::Test {
   std::unique_ptr<Server> server_obj_;
 };
 
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream f(p);
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
 TEST_F(CurveTest, KeyFilesRoundTripAndSecretsStayPrivate) {
   CurveKeyPair k, p;
-  ASSERT_EQ(read_key_file((dir_ / "server.key").string(), &k), "");
+  // NAME.key_secret holds both keys, NAME.key the public one only (the ZeroMQ naming).
+  ASSERT_EQ(read_key_file((dir_ / "server.key_secret").string(), &k), "");
   EXPECT_EQ(k.public_key, server_.public_key);
   EXPECT_EQ(k.secret_key, server_.secret_key);
-  ASSERT_EQ(read_key_file((dir_ / "server.pub").string(), &p), "");
+  ASSERT_EQ(read_key_file((dir_ / "server.key").string(), &p), "");
   EXPECT_EQ(p.public_key, server_.public_key);
   EXPECT_TRUE(p.secret_key.empty());
-  const auto perms = std::filesystem::status(dir_ / "server.key").permissions();
+  EXPECT_EQ(slurp(dir_ / "server.key").find(server_.secret_key), std::string::npos);
+  EXPECT_NE(
+      slurp(dir_ / "server.key").find("curve\n    public-key = \"" + server_.public_key + "\"\n"),
+      std::string::npos);
+  EXPECT_NE(
+      slurp(dir_ / "server.key_secret").find("    secret-key = \"" + server_.secret_key + "\"\n"),
+      std::string::npos);
+  const auto perms = std::filesystem::status(dir_ / "server.key_secret").permissions();
   EXPECT_EQ(perms & (std::filesystem::perms::group_all | std::filesystem::perms::others_all),
             std::filesystem::perms::none);
   EXPECT_NE(write_keypair(dir_.string(), "server", server_), "") << "overwrote a key pair";
   // Damaged or mismatched files are refused, saying where.
-  std::ofstream(dir_ / "bad.key") << "public " << server_.public_key << "\nsecret "
-                                  << known_.secret_key << "\n";
-  EXPECT_NE(read_key_file((dir_ / "bad.key").string(), &k).find("do not match"), std::string::npos);
-  std::ofstream(dir_ / "short.pub") << "public abc\n";
-  EXPECT_NE(read_key_file((dir_ / "short.pub").string(), &k).find("short.pub:1"),
+  std::ofstream(dir_ / "bad.key_secret")
+      << "curve\n    public-key = \"" << server_.public_key << "\"\n    secret-key = \""
+      << known_.secret_key << "\"\n";
+  EXPECT_NE(read_key_file((dir_ / "bad.key_secret").string(), &k).find("do not match"),
             std::string::npos);
+  std::ofstream(dir_ / "short.key") << "metadata\ncurve\n    public-key = \"abc\"\n";
+  EXPECT_EQ(read_key_file((dir_ / "short.key").string(), &k),
+            (dir_ / "short.key").string() +
+                ":3: public-key is not a z85 CURVE key (40 characters of Z85 for 32 bytes)");
   std::vector<std::string> keys;
+  // The clients folder holds alice.key and alice.key_secret: only the certificate counts.
+  ASSERT_TRUE(std::filesystem::exists(dir_ / "clients" / "alice.key_secret"));
   ASSERT_EQ(read_client_keys((dir_ / "clients").string(), &keys), "");
   EXPECT_EQ(keys, std::vector<std::string>{known_.public_key});
   EXPECT_NE(read_client_keys((dir_ / "none").string(), &keys), "");
+  // A secret certificate under a public name in the clients folder is refused.
+  std::filesystem::copy_file(dir_ / "server.key_secret", dir_ / "clients" / "oops.key");
+  EXPECT_NE(read_client_keys((dir_ / "clients").string(), &keys).find("oops.key: holds a secret"),
+            std::string::npos);
+}
+
+// Certificates as czmq's zcert_save and pyzmq's zmq.auth.create_certificates write them
+// (banners, metadata, quoting), and ZPL variations a hand-edited file may have.
+TEST_F(CurveTest, CertificatesOfOtherWritersAreRead) {
+  const std::string czmq =
+      "#   ****  Generated on 2016-01-19 12:38:19 by CZMQ  ****\n"
+      "#   ZeroMQ CURVE **Secret** Certificate\n"
+      "#   DO NOT PROVIDE THIS FILE TO OTHER USERS nor change its permissions.\n"
+      "\n"
+      "metadata\n"
+      "    name = \"alice\"\n"
+      "    email = \"alice@example.org\"\n"
+      "curve\n"
+      "    public-key = \"" +
+      known_.public_key +
+      "\"\n"
+      "    secret-key = \"" +
+      known_.secret_key + "\"\n";
+  std::ofstream(dir_ / "czmq.key_secret") << czmq;
+  CurveKeyPair k;
+  ASSERT_EQ(read_key_file((dir_ / "czmq.key_secret").string(), &k), "");
+  EXPECT_EQ(k.public_key, known_.public_key);
+  EXPECT_EQ(k.secret_key, known_.secret_key);
+  // Single quotes, CRLF, a trailing comment, a section after curve.
+  std::ofstream(dir_ / "variant.key") << "curve\r\n    public-key = '" << known_.public_key
+                                      << "'   # alice\r\nother\r\n    public-key = \"x\"\r\n";
+  ASSERT_EQ(read_key_file((dir_ / "variant.key").string(), &k), "");
+  EXPECT_EQ(k.public_key, known_.public_key);
+  EXPECT_TRUE(k.secret_key.empty());
+  // ZPL mistakes name the line.
+  auto error = [&](const std::string& text) {
+    std::ofstream(dir_ / "zpl.key") << text;
+    CurveKeyPair kp;
+    return read_key_file((dir_ / "zpl.key").string(), &kp);
+  };
+  const std::string f = (dir_ / "zpl.key").string();
+  EXPECT_EQ(error("curve\n\tpublic-key = \"" + known_.public_key + "\"\n"),
+            f + ":2: a tab in the indentation (ZPL indents by four spaces)");
+  EXPECT_EQ(error("curve\n   public-key = \"" + known_.public_key + "\"\n"),
+            f + ":2: indented by 3 spaces (ZPL indents by four spaces per level)");
+  EXPECT_EQ(error("curve\n    public-key = \"" + known_.public_key + "\n"),
+            f + ":2: value of public-key has no closing quote");
+  EXPECT_EQ(error("metadata\n    public-key = \"" + known_.public_key + "\"\n"),
+            f + ": no curve/public-key in the file (a ZeroMQ certificate has a 'curve' section "
+                "with public-key = \"<z85>\")");
+  EXPECT_EQ(error("curve\n        public-key = \"" + known_.public_key + "\"\n"),
+            f + ":2: indented deeper than the section it belongs to");
+}
+
+// Key files of conica before the certificates: NAME.key was the key pair, NAME.pub the public
+// key. They are refused saying what they are and how to convert them; the conversion gives
+// certificates with the same keys.
+TEST_F(CurveTest, OldKeyFilesAreRefusedAndConverted) {
+  const std::filesystem::path old = dir_ / "old";
+  std::filesystem::create_directories(old / "clients");
+  std::ofstream(old / "server.key")
+      << "# conica CURVE key pair: keep this file private\npublic " << server_.public_key
+      << "\nsecret " << server_.secret_key << "\n";
+  std::ofstream(old / "server.pub")
+      << "# conica CURVE public key\npublic " << server_.public_key << "\n";
+  std::ofstream(old / "clients" / "bob.pub") << "public " << known_.public_key << "\n";
+  CurveKeyPair k;
+  const std::string key = (old / "server.key").string();
+  EXPECT_EQ(read_key_file(key, &k),
+            key +
+                ": an old conica key file ('public <z85>' / 'secret <z85>' lines, in which "
+                "NAME.key was the SECRET file and NAME.pub the public one); conica now reads "
+                "ZeroMQ certificates as pyzmq and czmq write them (NAME.key public, "
+                "NAME.key_secret secret): convert it with `conica-keygen --convert " +
+                key + "`");
+  EXPECT_TRUE(is_old_key_file(key));
+  std::vector<std::string> keys;
+  const std::string bob = (old / "clients" / "bob.pub").string();
+  EXPECT_NE(
+      read_client_keys((old / "clients").string(), &keys).find(bob + ": an old conica key file"),
+      std::string::npos);
+
+  std::vector<std::string> done;
+  ASSERT_EQ(convert_old_key_file(key, &done), "");
+  EXPECT_EQ(done.size(), 2u);
+  ASSERT_EQ(read_key_file((old / "server.key_secret").string(), &k), "");
+  EXPECT_EQ(k.public_key, server_.public_key);
+  EXPECT_EQ(k.secret_key, server_.secret_key);
+  ASSERT_EQ(read_key_file(key, &k), "");
+  EXPECT_EQ(k.public_key, server_.public_key);
+  EXPECT_TRUE(k.secret_key.empty()) << "the converted NAME.key still holds the secret";
+  const auto perms = std::filesystem::status(old / "server.key_secret").permissions();
+  EXPECT_EQ(perms & (std::filesystem::perms::group_all | std::filesystem::perms::others_all),
+            std::filesystem::perms::none);
+  // The old NAME.pub beside it: NAME.key is already its certificate, the .pub goes.
+  done.clear();
+  ASSERT_EQ(convert_old_key_file((old / "server.pub").string(), &done), "");
+  EXPECT_FALSE(std::filesystem::exists(old / "server.pub"));
+  // A client's old .pub becomes NAME.key, and the folder serves again.
+  ASSERT_EQ(convert_old_key_file(bob, &done), "");
+  EXPECT_FALSE(std::filesystem::exists(bob));
+  ASSERT_EQ(read_client_keys((old / "clients").string(), &keys), "");
+  EXPECT_EQ(keys, std::vector<std::string>{known_.public_key});
+  // Converting twice, or over a certificate with other keys, is refused.
+  EXPECT_NE(convert_old_key_file(key, &done).find("not an old conica key file"), std::string::npos);
+  std::ofstream(old / "clients" / "bob.pub") << "public " << unknown_.public_key << "\n";
+  EXPECT_NE(convert_old_key_file(bob, &done).find("holds other keys: not overwritten"),
+            std::string::npos);
+  // An old .pub left in the clients folder keeps the server from starting, naming it.
+  EXPECT_NE(read_client_keys((old / "clients").string(), &keys).find(bob + ": an old conica"),
+            std::string::npos);
 }
 
 TEST_F(CurveTest, KnownKeyIsServedUnknownKeyAndPlainClientsAreRefused) {

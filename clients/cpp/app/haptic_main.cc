@@ -106,12 +106,11 @@ int main(int argc, char** argv) {
   app.add_option("--offline-wall", wall_k,
                  "N/m: no server; a wall through --offset, normal +z, answers 2 ticks late");
   app.add_option("--log", log_path, "CSV per tick: t,x,y,z,px,py,pz,fx,fy,fz");
-  app.add_option(
-      "--curve-server-pub", curve_server_pub,
-      "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
+  app.add_option("--curve-server-pub", curve_server_pub,
+                 "CURVE: the server's public certificate (its NAME.key, not NAME.key_secret)");
   app.add_option("--curve-key", curve_key,
-                 "CURVE: this client's key pair file (its .key from --generate-keys; the server "
-                 "lists its .pub)");
+                 "CURVE: this client's secret certificate NAME.key_secret (the server lists "
+                 "its NAME.key)");
   CLI11_PARSE(app, argc, argv);
 
   if (list) {

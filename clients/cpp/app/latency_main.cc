@@ -65,12 +65,11 @@ int main(int argc, char** argv) {
   app.add_option("--io-threads", io_threads, "ZeroMQ I/O threads")->check(CLI::Range(1, 16));
   app.add_flag("--realtime", realtime,
                "SCHED_FIFO (priority 70) for this thread and the ZeroMQ I/O threads");
-  app.add_option(
-      "--curve-server-pub", curve_server_pub,
-      "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
+  app.add_option("--curve-server-pub", curve_server_pub,
+                 "CURVE: the server's public certificate (its NAME.key, not NAME.key_secret)");
   app.add_option("--curve-key", curve_key,
-                 "CURVE: this client's key pair file (its .key from --generate-keys; the server "
-                 "lists its .pub)");
+                 "CURVE: this client's secret certificate NAME.key_secret (the server lists "
+                 "its NAME.key)");
   CLI11_PARSE(app, argc, argv);
 
   const auto pos = parse_vec3(position);

@@ -77,12 +77,11 @@ int main(int argc, char** argv) {
   app.add_option("--timeout", timeout_s, "s to wait for a reply before giving up");
   app.add_option("-o,--out", out_path, "CSV output file ('-': stdout)");
   app.add_flag("--realtime", realtime, "pace by the script clock instead of as fast as possible");
-  app.add_option(
-      "--curve-server-pub", curve_server_pub,
-      "CURVE: the server's public key file (its .pub from conica-server --generate-keys)");
+  app.add_option("--curve-server-pub", curve_server_pub,
+                 "CURVE: the server's public certificate (its NAME.key, not NAME.key_secret)");
   app.add_option("--curve-key", curve_key,
-                 "CURVE: this client's key pair file (its .key from --generate-keys; the server "
-                 "lists its .pub)");
+                 "CURVE: this client's secret certificate NAME.key_secret (the server lists "
+                 "its NAME.key)");
   CLI11_PARSE(app, argc, argv);
 
   auto fail = [](const std::string& m) {

@@ -72,20 +72,24 @@ std::string load_curve_client(const std::string& server_pub_file, const std::str
   *out = {};
   if (server_pub_file.empty() && key_file.empty()) return {};
   if (server_pub_file.empty())
-    return "--curve-key needs --curve-server-pub (the server's .pub file)";
-  if (key_file.empty()) return "--curve-server-pub needs --curve-key (this client's .key file)";
+    return "--curve-key needs --curve-server-pub (the server's public certificate NAME.key)";
+  if (key_file.empty())
+    return "--curve-server-pub needs --curve-key (this client's secret certificate "
+           "NAME.key_secret)";
   if (!net::curve_available()) return "CURVE requested but this libzmq has no CURVE support";
   net::CurveKeyPair server, mine;
   if (std::string e = net::read_key_file(server_pub_file, &server); !e.empty())
-    return e + " (--curve-server-pub: the server's .pub file)";
+    return e + " (--curve-server-pub: the server's public certificate NAME.key)";
   if (!server.secret_key.empty())
     return server_pub_file +
-           ": holds the server's secret key; give the client the server's .pub file";
+           ": holds the server's secret key; give the client the server's public certificate "
+           "(NAME.key, not NAME.key_secret)";
   if (std::string e = net::read_key_file(key_file, &mine); !e.empty())
-    return e + " (--curve-key: this client's .key file)";
+    return e + " (--curve-key: this client's secret certificate NAME.key_secret)";
   if (mine.secret_key.empty())
     return key_file +
-           ": no secret key; give this client's .key file (public and secret), not its .pub";
+           ": a public certificate (no secret key); give this client's secret certificate "
+           "(NAME.key_secret), not its NAME.key";
   out->server_public = server.public_key;
   out->keys = mine;
   return {};

@@ -46,7 +46,9 @@ ReplyKind decode_reply(const void* data, std::size_t size, v1::ServerMessage* sc
                        ForceSample* force, std::string* error);
 
 // CURVE (server/net/curve.h): the server's public key and this client's key pair, read from
-// the files conica-server --generate-keys writes (NAME.pub, NAME.key). Disabled when empty.
+// ZeroMQ certificates (conica-keygen, conica-server --generate-keys or pyzmq's
+// zmq.auth.create_certificates): the server's NAME.key and this client's NAME.key_secret.
+// Disabled when empty.
 struct CurveClient {
   std::string server_public;  // z85, 40 characters
   net::CurveKeyPair keys;     // this client's public and secret key, z85
