@@ -118,6 +118,10 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
       return Error{loc.at("lattice") + "lattice size must be > 0 m on every axis"};
     b.mesh = make_box_lattice(size, {l.cells(0), l.cells(1), l.cells(2)});
     for (auto& n : b.mesh.nodes) n += vec(l.origin());
+    out.geometry.kind = SceneGeometry::Kind::kLattice;
+    out.geometry.size = size;
+    out.geometry.cells = {l.cells(0), l.cells(1), l.cells(2)};
+    out.geometry.origin = vec(l.origin());
   } else if (scene.has_cylinder()) {
     const auto& c = scene.cylinder();
     if (!(c.radius() > 0) || !(c.height() > 0) || !std::isfinite(c.radius() + c.height()))
@@ -131,6 +135,12 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
                    " cells is over the limit of " + std::to_string(kMaxGeneratedCells)};
     b.mesh = make_cylinder_lattice(c.radius(), c.height(), c.cells_across(), c.cells_high());
     for (auto& n : b.mesh.nodes) n += vec(c.origin());
+    out.geometry.kind = SceneGeometry::Kind::kCylinder;
+    out.geometry.radius = c.radius();
+    out.geometry.height = c.height();
+    out.geometry.cells_across = c.cells_across();
+    out.geometry.cells_high = c.cells_high();
+    out.geometry.origin = vec(c.origin());
   } else if (scene.has_mesh()) {
     const auto& m = scene.mesh();
     if (m.path().empty()) return Error{loc.at("mesh") + "mesh path is empty"};
@@ -145,6 +155,10 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
       return Error{loc.at("mesh") + "mesh scale must be > 0 (got " + num(scale) + ")"};
     for (auto& n : b.mesh.nodes) n = n * scale + vec(m.translate());
     if (!m.has_repair() || m.repair()) repair(b.mesh);
+    out.geometry.kind = SceneGeometry::Kind::kMesh;
+    out.geometry.scale = scale;
+    out.geometry.translate = vec(m.translate());
+    out.geometry.repair = !m.has_repair() || m.repair();
   } else {
     return Error{name + ": a scene needs geometry: lattice, cylinder or mesh { ... }"};
   }

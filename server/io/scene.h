@@ -5,6 +5,7 @@
 //   cube.pbtxt:9:1: group 1 ("red"): d must be > 0 (got 0)
 #pragma once
 
+#include <array>
 #include <string>
 #include <string_view>
 
@@ -14,12 +15,26 @@
 
 namespace conica::io {
 
+// The geometry as the scene gives it (spec.mesh is what it generates or reads).
+struct SceneGeometry {
+  enum class Kind { kLattice, kCylinder, kMesh } kind = Kind::kLattice;
+  Vec3 size = Vec3::Zero();           // lattice, m
+  std::array<int, 3> cells{1, 1, 1};  // lattice
+  double radius = 0, height = 0;      // cylinder, m
+  int cells_across = 1, cells_high = 1;
+  Vec3 origin = Vec3::Zero();     // lattice and cylinder, m
+  double scale = 1;               // mesh: metres per file unit
+  Vec3 translate = Vec3::Zero();  // mesh, m
+  bool repair = true;             // mesh
+};
+
 struct SceneFile {
   std::string name;
   std::string description;
   std::string path;       // as given
   std::string mesh_path;  // resolved mesh file, empty for lattices
-  BodySpec spec;          // geometry in metres, cards, selectors, solver options
+  SceneGeometry geometry;
+  BodySpec spec;  // geometry in metres, cards, selectors, solver options
 };
 
 // Reads, parses and validates a scene; the mesh path is resolved against the scene's folder.

@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+
+#include "io/scene_writer.h"
 
 namespace conica::io {
 namespace {
@@ -180,6 +183,253 @@ TEST(SceneTest, ActiveRegionIsReadAndCheckedInTheSolver) {
   const std::string e = ErrorOf(vol);
   EXPECT_NE(e.find("s.pbtxt:7:1: solver.active_region: not with bulk_modulus"), std::string::npos)
       << e;
+}
+
+// Every field of two scenes, exactly (the writer prints numbers that read back bit for bit).
+void ExpectSameCard(const SpringCard& a, const SpringCard& b, const std::string& where) {
+  EXPECT_EQ(a.law, b.law) << where;
+  const ConicalCard &p = a.conical, &q = b.conical;
+  EXPECT_EQ(p.G, q.G) << where;
+  EXPECT_EQ(p.d, q.d) << where;
+  EXPECT_EQ(p.D1, q.D1) << where;
+  EXPECT_EQ(p.D2, q.D2) << where;
+  EXPECT_EQ(p.L0, q.L0) << where;
+  EXPECT_EQ(p.n_a, q.n_a) << where;
+  EXPECT_EQ(p.precompression, q.precompression) << where;
+  EXPECT_EQ(a.hooke_k, b.hooke_k) << where;
+  EXPECT_EQ(a.hooke_length, b.hooke_length) << where;
+  EXPECT_EQ(a.stiffness_cap, b.stiffness_cap) << where;
+  EXPECT_EQ(a.damping, b.damping) << where;
+  EXPECT_EQ(a.maxwell_k, b.maxwell_k) << where;
+  EXPECT_EQ(a.maxwell_tau, b.maxwell_tau) << where;
+}
+
+void ExpectSameGroups(const std::vector<SpringGroupSpec>& a, const std::vector<SpringGroupSpec>& b,
+                      const std::string& where) {
+  ASSERT_EQ(a.size(), b.size()) << where;
+  for (size_t g = 0; g < a.size(); ++g) {
+    const std::string w = where + " group " + std::to_string(g);
+    EXPECT_EQ(a[g].name, b[g].name) << w;
+    ExpectSameCard(a[g].card, b[g].card, w);
+    EXPECT_EQ(a[g].families, b[g].families) << w;
+    EXPECT_EQ(a[g].regions, b[g].regions) << w;
+    EXPECT_EQ(a[g].axis, b[g].axis) << w;
+    EXPECT_EQ(a[g].max_angle_deg, b[g].max_angle_deg) << w;
+  }
+}
+
+void ExpectSameScene(const SceneFile& a, const SceneFile& b, const std::string& where) {
+  EXPECT_EQ(a.name, b.name) << where;
+  EXPECT_EQ(a.description, b.description) << where;
+  EXPECT_EQ(std::filesystem::weakly_canonical(a.mesh_path),
+            std::filesystem::weakly_canonical(b.mesh_path))
+      << where;
+  const SceneGeometry &g = a.geometry, &h = b.geometry;
+  EXPECT_EQ(g.kind, h.kind) << where;
+  EXPECT_EQ(g.size, h.size) << where;
+  EXPECT_EQ(g.cells, h.cells) << where;
+  EXPECT_EQ(g.radius, h.radius) << where;
+  EXPECT_EQ(g.height, h.height) << where;
+  EXPECT_EQ(g.cells_across, h.cells_across) << where;
+  EXPECT_EQ(g.cells_high, h.cells_high) << where;
+  EXPECT_EQ(g.origin, h.origin) << where;
+  EXPECT_EQ(g.scale, h.scale) << where;
+  EXPECT_EQ(g.translate, h.translate) << where;
+  EXPECT_EQ(g.repair, h.repair) << where;
+  const BodySpec &s = a.spec, &t = b.spec;
+  EXPECT_EQ(s.mesh.nodes, t.mesh.nodes) << where;
+  EXPECT_EQ(s.mesh.tetrahedra, t.mesh.tetrahedra) << where;
+  EXPECT_EQ(s.mesh.hexahedra, t.mesh.hexahedra) << where;
+  EXPECT_EQ(s.mesh.triangles, t.mesh.triangles) << where;
+  ASSERT_EQ(s.mesh.regions.size(), t.mesh.regions.size()) << where;
+  for (size_t r = 0; r < s.mesh.regions.size(); ++r) {
+    EXPECT_EQ(s.mesh.regions[r].name, t.mesh.regions[r].name) << where;
+    EXPECT_EQ(s.mesh.regions[r].id, t.mesh.regions[r].id) << where;
+    EXPECT_EQ(s.mesh.regions[r].tetrahedra, t.mesh.regions[r].tetrahedra) << where;
+    EXPECT_EQ(s.mesh.regions[r].hexahedra, t.mesh.regions[r].hexahedra) << where;
+  }
+  EXPECT_EQ(s.density, t.density) << where;
+  EXPECT_EQ(s.mapping, t.mapping) << where;
+  EXPECT_EQ(s.bulk_modulus, t.bulk_modulus) << where;
+  EXPECT_EQ(s.spread_modulus, t.spread_modulus) << where;
+  EXPECT_EQ(s.shear_modulus, t.shear_modulus) << where;
+  ExpectSameGroups(s.groups, t.groups, where);
+  ASSERT_EQ(s.fixed.size(), t.fixed.size()) << where;
+  for (size_t k = 0; k < s.fixed.size(); ++k) {
+    const FixedSelector &f = s.fixed[k], &e = t.fixed[k];
+    EXPECT_EQ(f.kind, e.kind) << where << " fixed " << k;
+    EXPECT_EQ(f.normal, e.normal) << where << " fixed " << k;
+    EXPECT_EQ(f.offset, e.offset) << where << " fixed " << k;
+    EXPECT_EQ(f.tolerance, e.tolerance) << where << " fixed " << k;
+    EXPECT_EQ(f.box_min, e.box_min) << where << " fixed " << k;
+    EXPECT_EQ(f.box_max, e.box_max) << where << " fixed " << k;
+    EXPECT_EQ(f.region, e.region) << where << " fixed " << k;
+    EXPECT_EQ(f.nodes, e.nodes) << where << " fixed " << k;
+    EXPECT_EQ(f.axes, e.axes) << where << " fixed " << k;
+  }
+  ASSERT_EQ(s.probes.size(), t.probes.size()) << where;
+  for (size_t k = 0; k < s.probes.size(); ++k) {
+    const ProbeSpec &p = s.probes[k], &q = t.probes[k];
+    EXPECT_EQ(p.radius, q.radius) << where << " probe " << k;
+    EXPECT_EQ(p.stiffness, q.stiffness) << where << " probe " << k;
+    EXPECT_EQ(p.contact, q.contact) << where << " probe " << k;
+    EXPECT_EQ(p.shape, q.shape) << where << " probe " << k;
+    EXPECT_EQ(p.axis, q.axis) << where << " probe " << k;
+    EXPECT_EQ(p.coupling, q.coupling) << where << " probe " << k;
+    EXPECT_EQ(p.friction, q.friction) << where << " probe " << k;
+  }
+  ASSERT_EQ(s.planes.size(), t.planes.size()) << where;
+  for (size_t k = 0; k < s.planes.size(); ++k) {
+    EXPECT_EQ(s.planes[k].normal, t.planes[k].normal) << where << " plate " << k;
+    EXPECT_EQ(s.planes[k].offset, t.planes[k].offset) << where << " plate " << k;
+    EXPECT_EQ(s.planes[k].stiffness, t.planes[k].stiffness) << where << " plate " << k;
+  }
+  const SolverOptions &o = s.options, &u = t.options;
+  EXPECT_EQ(o.integrator, u.integrator) << where;
+  EXPECT_EQ(o.dt, u.dt) << where;
+  EXPECT_EQ(o.substeps, u.substeps) << where;
+  EXPECT_EQ(o.newton_iterations, u.newton_iterations) << where;
+  EXPECT_EQ(o.cg_iterations, u.cg_iterations) << where;
+  EXPECT_EQ(o.cg_tolerance, u.cg_tolerance) << where;
+  EXPECT_EQ(o.mass_damping, u.mass_damping) << where;
+  EXPECT_EQ(o.gravity, u.gravity) << where;
+  EXPECT_EQ(o.min_length_fraction, u.min_length_fraction) << where;
+  EXPECT_EQ(o.max_speed, u.max_speed) << where;
+  EXPECT_EQ(o.active_region, u.active_region) << where;
+  EXPECT_EQ(o.active_tolerance, u.active_tolerance) << where;
+  EXPECT_EQ(o.active_far_every, u.active_far_every) << where;
+}
+
+// Writes `scene` as a file in a fresh folder (not the scene's own: the mesh path must follow)
+// and reads it back with read_scene.
+Result<SceneFile> WriteAndRead(const SceneFile& scene, const std::string& file) {
+  const std::filesystem::path dir =
+      std::filesystem::path(testing::TempDir()) / "scene_round_trip" / "out";
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / file).string();
+  const std::string e = write_text_file(path, scene_text(scene, dir.string()));
+  if (!e.empty()) return Error{e};
+  return read_scene(path);
+}
+
+TEST(SceneWriterTest, EveryConfigRoundTrips) {
+  int count = 0;
+  for (const auto& e : std::filesystem::directory_iterator(kConfigs)) {
+    if (e.path().extension() != ".pbtxt") continue;
+    auto a = read_scene(e.path().string());
+    ASSERT_TRUE(a) << a.error();
+    auto b = WriteAndRead(a.value(), e.path().filename().string());
+    ASSERT_TRUE(b) << e.path() << ": " << b.error();
+    ExpectSameScene(a.value(), b.value(), e.path().filename().string());
+    ++count;
+  }
+  EXPECT_GE(count, 4);
+}
+
+// Every field the reader knows, none at its default; the text is protobuf's own.
+TEST(SceneWriterTest, ASceneWithEveryFieldRoundTrips) {
+  const char* text = R"(
+name: "every field"
+description: "round trip"
+cylinder { radius: 0.021 height: 0.017 cells_across: 3 cells_high: 2 origin { x: 0.1 y: -0.2 z: 0.3 } }
+density: 1234.5
+mapping: RAW
+bulk_modulus: 1.5e5
+spread_modulus: 7e4
+shear_modulus: 3.3e3
+group {
+  name: "edges"
+  card {
+    conical { G: 2.1e8 d: 1.1e-3 D1: 2.2e-3 D2: 8.1e-3 L0: 9.7e-3 n_a: 3.5 precompression: 1e-3 }
+    stiffness_cap: 250 damping: 0.125 maxwell_k: 17 maxwell_tau: 0.75
+  }
+  families: [EDGE]
+  axis { z: 1 }
+  max_angle_deg: 20
+}
+group {
+  name: "diagonals"
+  card { hooke { k: 1e3 length: 0.013 } damping: 0.5 }
+  families: [FACE_DIAGONAL, BODY_DIAGONAL]
+}
+group {
+  name: "rest"
+  card { conical { G: 2e8 d: 1e-3 D1: 2e-3 D2: 8e-3 L0: 10e-3 n_a: 3 } }
+}
+fixed { plane { normal { z: 1 } offset: 0.3 tolerance: 1e-5 } axes: [Z] }
+fixed { box { min { x: -1 y: -1 z: 0.29 } max { x: 1 y: 1 z: 0.301 } } axes: [X, Y] }
+fixed { nodes { nodes: [0, 3, 5] } }
+probe { radius: 0.004 stiffness: 1e6 contact: SURFACE shape: PUNCH axis { x: 1 } coupling: 800 friction: 0.3 }
+probe { radius: 0.002 stiffness: 500 }
+plate { normal { z: -1 } offset: -0.4 stiffness: 2e4 }
+solver {
+  integrator: EXPLICIT_EULER rate_hz: 2000 substeps: 3 newton_iterations: 4 cg_iterations: 25
+  cg_tolerance: 1e-6 mass_damping: 0.5 gravity { z: -9.81 } min_length_fraction: 0.1
+  max_speed: 20
+}
+)";
+  auto a = parse_scene(text, "every.pbtxt", kConfigs);
+  ASSERT_TRUE(a) << a.error();
+  auto b = WriteAndRead(a.value(), "every.pbtxt");
+  ASSERT_TRUE(b) << b.error();
+  ExpectSameScene(a.value(), b.value(), "every field");
+  // Numbers no short decimal holds come back bit for bit.
+  SceneFile odd = a.value();
+  odd.spec.groups[0].card.conical.G = 4.76372418e+09 / 3;
+  odd.spec.bulk_modulus = 1.0 / 3 * 1e5;
+  odd.spec.spread_modulus = odd.spec.bulk_modulus * 0.1;
+  auto c = WriteAndRead(odd, "odd.pbtxt");
+  ASSERT_TRUE(c) << c.error();
+  ExpectSameScene(odd, c.value(), "odd numbers");
+  // A lattice away from the origin, with the active region.
+  auto region = parse_scene(
+      std::string(kGood) + "solver { active_region { tolerance: 2e-4 far_every: -1 } }\n",
+      "r.pbtxt", kConfigs);
+  ASSERT_TRUE(region) << region.error();
+  SceneFile r = region.value();
+  r.geometry.origin = Vec3(0.5, 0, 0);
+  for (auto& n : r.spec.mesh.nodes) n += r.geometry.origin;
+  auto d = WriteAndRead(r, "region.pbtxt");
+  ASSERT_TRUE(d) << d.error();
+  ExpectSameScene(r, d.value(), "active region");
+  // What the writer printed is protobuf's text format of the Scene message.
+  const std::string written = scene_text(a.value());
+  EXPECT_NE(written.find("families: FACE_DIAGONAL\n  families: BODY_DIAGONAL\n"), std::string::npos)
+      << written;
+  EXPECT_NE(written.find("cylinder {\n  radius: 0.021\n"), std::string::npos) << written;
+}
+
+// The calibrated card's fragment: the material alone, pasted into a scene with geometry.
+TEST(SceneWriterTest, MaterialTextPastesIntoAScene) {
+  auto a = parse_scene(kGood, "s.pbtxt", kConfigs);
+  ASSERT_TRUE(a) << a.error();
+  BodySpec material;
+  material.bulk_modulus = 2.5e5 / 3;
+  material.spread_modulus = material.bulk_modulus;
+  material.shear_modulus = 1.0 / 7;
+  SpringGroupSpec g = a.value().spec.groups[0];
+  g.card.conical.precompression = 1e-4 / 3;
+  g.families = kEdge;
+  material.groups = {g};
+  g.name = "diagonals";
+  g.families = kFaceDiagonal | kBodyDiagonal;
+  g.card.conical.G *= 36.0 / 17;
+  material.groups.push_back(g);
+  const std::string text = material_text(material);
+  EXPECT_EQ(text.find("lattice"), std::string::npos) << text;
+  std::string scene = kGood;
+  scene.erase(scene.find("group {"), scene.find("fixed {") - scene.find("group {"));
+  auto b = parse_scene(scene + text, "pasted.pbtxt", kConfigs);
+  ASSERT_TRUE(b) << b.error();
+  const BodySpec& s = b.value().spec;
+  EXPECT_EQ(s.bulk_modulus, material.bulk_modulus);
+  EXPECT_EQ(s.spread_modulus, material.spread_modulus);
+  EXPECT_EQ(s.shear_modulus, material.shear_modulus);
+  ExpectSameGroups(material.groups, s.groups, "pasted");
+  // Zero terms are left out, as the scene's defaults are zero.
+  material.spread_modulus = material.shear_modulus = 0;
+  EXPECT_EQ(material_text(material).find("spread_modulus"), std::string::npos);
+  EXPECT_EQ(material_text(material).find("shear_modulus"), std::string::npos);
 }
 
 }  // namespace
