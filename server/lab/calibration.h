@@ -46,18 +46,12 @@
 
 #include <functional>
 #include <string>
-#include <string_view>
 #include <vector>
 
 #include "core/body.h"
 #include "lab/compression.h"
 
 namespace conica::lab {
-
-// Parses a compression test CSV (header lines, then a column header naming `Compression (mm)`
-// and `Load (N)`, then numbers) into displacement (m) and force (N), keeping the loading branch
-// (up to the largest compression). Returns false with a message on malformed input.
-bool parse_force_curve(std::string_view text, Curve* out, std::string* error);
 
 // The identifiable parameters of a conical card (see above), and its pre-compression.
 struct CardShape {
@@ -256,13 +250,9 @@ std::vector<SpringGroupSpec> split_groups(const BodySpec& spec,
 // closed form); Levenberg-Marquardt (Ceres) on the cell surrogate from the best starts; then a
 // full-body compression to verify (K > 1: the best verify_candidates surrogate optima, keeping
 // the best in the full body) and, with full_iterations > 0, Levenberg-Marquardt through the
-// full body.
+// full body. The stages, in order, are in lab/calibration_stages.h. No I/O: the curves come from
+// io/curve_reader.h, the fitted groups go out through io/scene_writer.h.
 FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves,
                     const FitOptions& options);
-
-// The card as a scene fragment: group { name: "..." card { conical { ... } stiffness_cap: ... } }.
-std::string card_fragment(const std::string& group_name, const SpringCard& card);
-// A group as a scene fragment (card, families when not all, regions, axis).
-std::string group_fragment(const SpringGroupSpec& group);
 
 }  // namespace conica::lab

@@ -10,14 +10,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <map>
-#include <sstream>
 
 #include "io/scene.h"
 #include "lab/calibration.h"
 #include "lab/compression.h"
+#include "phantom_curves.h"
 
 namespace conica::lab {
 namespace {
@@ -26,16 +25,9 @@ namespace {
 void ReadEcoflex30(std::vector<Curve>* curves) {
   for (char series : {'A', 'B'})
     for (int i = 1; i <= 5; ++i) {
-      const std::string path = std::string(CONICA_SHARED_DIR) + "/data/phantoms/EF30_0T/EF30_0T_" +
-                               series + std::to_string(i) + ".csv";
-      std::ifstream in(path);
-      ASSERT_TRUE(in.good()) << path;
-      std::stringstream ss;
-      ss << in.rdbuf();
-      Curve c;
-      std::string err;
-      ASSERT_TRUE(parse_force_curve(ss.str(), &c, &err)) << path << ": " << err;
-      curves->push_back(std::move(c));
+      curves->push_back(
+          ReadPhantom("EF30_0T/EF30_0T_" + std::string(1, series) + std::to_string(i) + ".csv"));
+      ASSERT_FALSE(curves->back().empty());
     }
 }
 

@@ -2,17 +2,23 @@
 // phantom CSV format: header lines, then columns `Compression (mm)`, `Load (N)`). Several files
 // are averaged on a common displacement grid. Prints progress; the last line is
 // `average relative error: X %` (full body when it ran, else the surrogate). Writes the fitted
-// card as a scene fragment.
+// card as a scene fragment and, with --scene-out, the whole scene with it.
+//
+// The pipeline's ends are here: the scene and the curves are read through server/io
+// (io/scene.h, io/curve_reader.h), the fit runs in server/lab (calibrate(), its stages in
+// lab/calibration_stages.h), and the card and scene go out through io/scene_writer.h.
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "app/lab/lab.h"
+#include "io/curve_reader.h"
 #include "io/scene.h"
+#include "io/scene_writer.h"
 #include "lab/calibration.h"
 
 namespace conica::lab {
@@ -20,7 +26,7 @@ namespace conica::lab {
 void register_calibrate(CLI::App& app, Runner* run) {
   struct Opts {
     std::vector<std::string> data;
-    std::string scene, out, curves, plot;
+    std::string scene, out, scene_out, curves, plot;
     FitOptions fit;  // the options that map one to one, with the library's defaults
     double rate_mm_per_min = 500;
     bool free_moduli = false, no_precompression = false;
@@ -88,33 +94,39 @@ void register_calibrate(CLI::App& app, Runner* run) {
   cmd->add_option("--rate-mm-per-min", o->rate_mm_per_min, "plate speed of the full-body runs")
       ->capture_default_str();
   cmd->add_option("--out", o->out, "write the fitted card here (scene fragment)")->required();
+  cmd->add_option("--scene-out", o->scene_out,
+                  "also write the scene with the fitted groups and volume terms (read back to "
+                  "check it loads)");
   cmd->add_option("--curves", o->curves,
                   "write displacement_mm,data_N,surrogate_N,full_N on the grid to this CSV");
   cmd->add_option("--plot", o->plot, "draw data and model curves to this PNG (needs --curves)");
   cmd->callback([o, run] {
     *run = [o]() -> int {
-      BodySpec spec;
-      if (std::string e = io::load_scene(o->scene, &spec); !e.empty()) {
-        std::fprintf(stderr, "conica-lab calibrate: %s\n", e.c_str());
+      // Read: the scene, then every curve against the body's height (units, reach).
+      auto scene = io::read_scene(o->scene);
+      if (!scene) {
+        std::fprintf(stderr, "conica-lab calibrate: %s\n", scene.error().c_str());
         return 2;
       }
+      BodySpec spec = scene.value().spec;
       ensure_top_plate(&spec);
+      io::CurveRequest request;
+      request.max_strain = o->fit.max_strain;
+      if (Model body; build_model(spec, &body).empty() && !body.planes.empty())
+        request.height = plate_height(body);
       std::vector<Curve> curves;
       for (const std::string& path : o->data) {
-        std::ifstream in(path);
-        if (!in) {
-          std::fprintf(stderr, "conica-lab calibrate: cannot read %s\n", path.c_str());
+        auto c = io::read_curve(path, request);
+        if (!c) {
+          std::fprintf(stderr, "conica-lab calibrate: %s\n", c.error().c_str());
           return 2;
         }
-        std::stringstream ss;
-        ss << in.rdbuf();
-        Curve c;
-        std::string err;
-        if (!parse_force_curve(ss.str(), &c, &err)) {
-          std::fprintf(stderr, "conica-lab calibrate: %s: %s\n", path.c_str(), err.c_str());
-          return 2;
-        }
-        curves.push_back(std::move(c));
+        for (const std::string& w : c.value().warnings)
+          std::fprintf(stderr, "conica-lab calibrate: warning: %s\n", w.c_str());
+        Curve curve;
+        for (const io::CurveSample& s : c.value().samples)
+          curve.push_back({s.displacement, s.force});
+        curves.push_back(std::move(curve));
       }
       FitOptions fo = o->fit;
       fo.isotropic = !o->free_moduli;
@@ -162,25 +174,37 @@ void register_calibrate(CLI::App& app, Runner* run) {
                       100 * r.floor.error, 100 * r.floor_precompressed.error);
         head += line;
       }
-      std::ofstream out(o->out);
-      out << head;
-      if (r.bulk_modulus > 0) {
-        std::snprintf(line, sizeof line, "bulk_modulus: %.9g\n", r.bulk_modulus);
-        out << line;
-        if (r.spread_modulus > 0) {
-          std::snprintf(line, sizeof line, "spread_modulus: %.9g\n", r.spread_modulus);
-          out << line;
-        }
-      }
-      if (r.shear_modulus > 0) {
-        std::snprintf(line, sizeof line, "shear_modulus: %.9g\n", r.shear_modulus);
-        out << line;
-      }
+      // Write: the fitted material (volume terms and conical groups) as a scene fragment.
+      BodySpec material;
+      material.bulk_modulus = r.bulk_modulus;
+      material.spread_modulus = r.spread_modulus;
+      material.shear_modulus = r.shear_modulus;
       for (const auto& g : r.groups)
-        if (g.card.law == LawKind::kConical) out << group_fragment(g);
-      if (!out) {
-        std::fprintf(stderr, "conica-lab calibrate: cannot write %s\n", o->out.c_str());
+        if (g.card.law == LawKind::kConical) material.groups.push_back(g);
+      if (std::string e = io::write_text_file(o->out, head + io::material_text(material));
+          !e.empty()) {
+        std::fprintf(stderr, "conica-lab calibrate: %s\n", e.c_str());
         return 1;
+      }
+      if (!o->scene_out.empty()) {
+        io::SceneFile fitted = scene.value();
+        fitted.spec.groups = r.groups;
+        fitted.spec.bulk_modulus = r.bulk_modulus;
+        fitted.spec.spread_modulus = r.spread_modulus;
+        fitted.spec.shear_modulus = r.shear_modulus;
+        const std::string dir = std::filesystem::path(o->scene_out).parent_path().string();
+        if (std::string e = io::write_text_file(
+                o->scene_out, head + io::scene_text(fitted, dir.empty() ? "." : dir));
+            !e.empty()) {
+          std::fprintf(stderr, "conica-lab calibrate: %s\n", e.c_str());
+          return 1;
+        }
+        if (auto back = io::read_scene(o->scene_out); !back) {
+          std::fprintf(stderr, "conica-lab calibrate: the written scene does not load: %s\n",
+                       back.error().c_str());
+          return 1;
+        }
+        std::printf("fitted scene written to %s\n", o->scene_out.c_str());
       }
       std::printf(
           "fitted group(s) written to %s; lattice Zener ratio %.4g, Poisson %.4g; body "
