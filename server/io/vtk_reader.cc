@@ -643,7 +643,7 @@ MeshFile read_vtk_binary(ByteReader& in, std::string_view version) {
         in.fail_at(at, "POINT_DATA has " + std::to_string(attribute_count) + " values for " +
                            std::to_string(mesh.nodes.size()) + " points");
       }
-    } else if (token == "FIELD" && !in_data) {
+    } else if ((token == "FIELD" || token == "METADATA") && !in_data) {
       read_binary_attribute(in, k, token, 0, false, &regions, &have_regions);
     } else if (in_data) {
       read_binary_attribute(in, k, token, attribute_count, cell_data, &regions, &have_regions);
@@ -743,7 +743,7 @@ MeshFile read_vtk(LineReader& in, std::string_view header, std::string_view text
         in.fail("POINT_DATA has " + std::to_string(attribute_count) + " values for " +
                 std::to_string(mesh.nodes.size()) + " points");
       }
-    } else if (token == "FIELD" && !in_data) {
+    } else if ((token == "FIELD" || token == "METADATA") && !in_data) {
       read_attribute(t, token, 0, false, &regions, &have_regions);  // dataset-level field data
     } else if (in_data) {
       read_attribute(t, token, attribute_count, cell_data, &regions, &have_regions);

@@ -254,6 +254,22 @@ TEST_F(MeshioTest, BigEndianGmshGivesTheSameMesh) {
   }
 }
 
+// VTK 9 writes METADATA blocks (INFORMATION keys such as array ranges, ended by a blank line)
+// after data arrays, POINTS among them: skipped in BINARY and ASCII files alike.
+TEST_F(MeshioTest, VtkMetadataBlocksAreSkipped) {
+  const std::string metadata =
+      "METADATA\nINFORMATION 1\nNAME L2_NORM_RANGE LOCATION vtkDataArray\nDATA 2 0 1.7\n\n";
+  for (const std::string file : {"tet.vtk42.vtk", "tet.vtk42-ascii.vtk"}) {
+    std::string text = slurp(path(file));
+    const std::size_t cells = text.find("CELLS ");
+    ASSERT_NE(cells, std::string::npos);
+    text.insert(cells, metadata);
+    const Result<MeshFile> r = parse_mesh(text, file);
+    ASSERT_TRUE(r.ok()) << r.error();
+    expect_as_written(r.value(), read_expected(path("tet.expected")), file);
+  }
+}
+
 // ---- refused formats: the meshio line that converts them, and it works -------------------
 
 TEST_F(MeshioTest, VtuIsRefusedWithTheConvertCommandThatWorks) {
