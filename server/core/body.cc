@@ -81,6 +81,14 @@ const char* integrator_name(Integrator i) {
   return "unknown";
 }
 
+const char* stage_name(Stage stage) {
+  static constexpr const char* kNames[kNumStages] = {"proxies",   "region",    "springs",
+                                                     "elements",  "contact",   "integrate",
+                                                     "hard_stop", "far_field", "guard"};
+  const int k = static_cast<int>(stage);
+  return k >= 0 && k < kNumStages ? kNames[k] : "unknown";
+}
+
 Mesh make_box_lattice(const Vec3& size, const std::array<int, 3>& cells) {
   Mesh m;
   const int nx = cells[0] + 1, ny = cells[1] + 1, nz = cells[2] + 1;

@@ -72,8 +72,8 @@ struct Accumulator {
   const ContactLayer& layer;
   const Tool& tool;
   ToolContact* out;
-  Vec3* f[3];    // node forces (null: not wanted)
-  Mat3* b[3];    // node blocks (null: not wanted)
+  Vec3* f[3];  // node forces (null: not wanted)
+  Mat3* b[3];  // node blocks (null: not wanted)
   bool touched = false;
   double energy = 0, s0 = 0, depth = 0;
   Vec3 force = Vec3::Zero();
@@ -214,8 +214,7 @@ void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&&
 
 // The sphere (centre c, radius R) against triangle (p0, p1, p2): the integral over the part of
 // the triangle inside the ball, the disc the ball cuts from the triangle's plane.
-void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2,
-                     Accumulator<SphereTool>& acc) {
+void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator<SphereTool>& acc) {
   const Vec3 nv = (p1 - p0).cross(p2 - p0);
   const double area2 = nv.norm();
   if (!(area2 > 0)) return;
@@ -324,8 +323,8 @@ double segment_triangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3&
 // A triangle's centroid and the largest centroid-vertex distance (m): its bounding sphere.
 double triangle_bound(const Vec3& p0, const Vec3& p1, const Vec3& p2, Vec3* center) {
   *center = (p0 + p1 + p2) / 3;
-  return std::sqrt(std::max({(p0 - *center).squaredNorm(), (p1 - *center).squaredNorm(),
-                             (p2 - *center).squaredNorm()}));
+  return std::sqrt(std::max(
+      {(p0 - *center).squaredNorm(), (p1 - *center).squaredNorm(), (p2 - *center).squaredNorm()}));
 }
 
 // Surface triangle t's frame at positions x: its edges from node 0 and its unit normal.

@@ -1,7 +1,7 @@
 // Backward Euler. Newton on  M (x1 - x0 - h v0) = h^2 f(x1, (x1 - x0) / h); each iteration solves
 //   A dx = h^2 f - M (x1 - x0 - h v0),   A = M (1 + h mu) + sum_s [alpha d d^T + beta (I - d d^T)]
 //                                            + contact,
-// alpha = h^2 k_ax + h a b^2 c, beta = h^2 max(0, T / l) (step.h), plus h^2 kappa / |V0| g g^T per
+// alpha = h^2 k_ax + h a b c, beta = h^2 max(0, T / l) (step.h), plus h^2 kappa / |V0| g g^T per
 // element with volume stiffness (volume.h), restricted to free axes, by a
 // matrix-free conjugate gradient with a block-Jacobi (3 x 3 per node) preconditioner and fixed
 // budgets, then takes the longest step (1, 1/2, ...) that makes no spring shorter than its
@@ -414,7 +414,7 @@ void build_preconditioner(const Model& m, Workspace& ws) {
   invert_blocks(nn, d, ws.sys_free.data(), ws.sys_pre.data());
 }
 
-// alpha = h^2 k_ax + h a b^2 c and beta = h^2 max(0, T / l) of n springs of one card (damper c)
+// alpha = h^2 k_ax + h a b c and beta = h^2 max(0, T / l) of n springs of one card (damper c)
 // from the values the force pass kept (card units -> node units).
 [[gnu::noinline]] void coefficients(int n, double h, double c, const double* __restrict a,
                                     const double* __restrict b, const double* __restrict tangent,
@@ -422,7 +422,7 @@ void build_preconditioner(const Model& m, Workspace& ws) {
                                     double* __restrict alpha, double* __restrict beta) {
   for (int k = 0; k < n; ++k) {
     const double kax = std::min(a[k] * b[k] * tangent[k], 1e300);
-    alpha[k] = h * h * kax + h * a[k] * b[k] * b[k] * c;
+    alpha[k] = h * h * kax + h * a[k] * b[k] * c;
     beta[k] = h * h * std::max(0.0, -a[k] * load[k] / std::max(length[k], 1e-300));
   }
 }
@@ -477,6 +477,18 @@ int solve(const Model& m, Workspace& ws) {
 
 }  // namespace
 
+void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p,
+                    double* y) {
+  const int nn = m.num_nodes();
+  const double mfac = 1.0 + h * m.options.mass_damping;
+  for (int i = 0; i < nn; ++i) ws.sys_mass[i] = m.mass[i] * mfac;
+  evaluate_forces(m, s, ws, true);
+  ws.sys_h2 = h * h;
+  system_coefficients(m, ws, h);
+  assemble_shear(m, ws);
+  apply_system(m, ws, p, y);
+}
+
 void integrate_implicit(const Model& m, State& s, Workspace& ws) {
   const double h = substep_of(m);
   const int nn = m.num_nodes(), ns = m.num_springs();
@@ -485,7 +497,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
     ws.v0[i] = s.v[i];
     s.x[i] += h * s.v[i].cwiseProduct(m.free_axes[i]);  // predictor x1 = x0 + h v0
   }
-  apply_hard_stop(m, s, ws);  // the predictor must not cross solid height either
+  hard_stop(m, s, ws);  // the predictor must not cross solid height either
   const double mfac = 1.0 + h * m.options.mass_damping;
   for (int i = 0; i < nn; ++i) ws.sys_mass[i] = m.mass[i] * mfac;
 

@@ -202,6 +202,23 @@ struct PlaneState {
   int contacts = 0;
 };
 
+// The stages of a tick (core/step.h), in the order Counters::stage_ns and the published
+// LoopStats.stage_ns list them.
+enum class Stage : int {
+  kProxies = 0,  // surface-contact proxies toward their targets
+  kRegion,       // choosing the active region
+  kSprings,      // spring geometry, law, dampers, Maxwell branches
+  kElements,     // volume, spread and shear terms
+  kContact,      // probes and planes against the body
+  kIntegrate,    // the integrator's own work (explicit update, implicit system and solve)
+  kHardStop,     // solid-height projection and Maxwell relaxation
+  kFarField,     // the multi-rate far field's share and step
+  kGuard,        // NaN / speed check and rollback
+  kCount
+};
+inline constexpr int kNumStages = static_cast<int>(Stage::kCount);
+const char* stage_name(Stage stage);
+
 // Counters the step reports through instead of logging.
 struct Counters {
   std::uint64_t steps = 0;
@@ -211,6 +228,8 @@ struct Counters {
   std::uint64_t hard_stops = 0;     // springs projected back to their minimum length
   std::uint64_t cg_iterations = 0;  // total, implicit only
   std::uint64_t awake_nodes = 0;    // active region: nodes integrated in the last tick
+  std::array<std::uint64_t, kNumStages> stage_ns{};  // ns spent in each stage, in all (steady
+                                                     // clock; diagnostic, not part of replay)
 };
 
 // A vector whose copies keep the capacity of their source, so that a copied State still pushes

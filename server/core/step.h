@@ -176,6 +176,7 @@ struct Workspace {
   // Per element (tetrahedra 16 entries, then hexahedra 64): the implicit system's shear
   // Laplacian h^2 sum_q c_q (b_qa . b_qb), assembled once per Newton iteration.
   std::vector<double> element_lap;
+  std::uint64_t lap_ns = 0;  // steady clock at the last stage lap (step_detail.h)
   // Last good state for rollback.
   std::vector<Vec3> good_x, good_v;
   std::vector<double> good_maxwell;
@@ -221,9 +222,10 @@ inline constexpr double kContactDepthCap = 2.0;
 // Contact of one node at x (outward surface normal `normal`, zero inside the body) with a probe
 // sphere of radius R around c and penalty kc, by the law above. Returns false when the node is
 // outside the sphere; otherwise the force on the node, the node's share of d(probe force)/dc
-// (nodes held) and the unit direction along which the node is pushed.
+// (nodes held), the unit direction along which the node is pushed and, when asked, the depth s
+// (m; the penalty's energy is kc s^2 / 2, with the same cap as the force).
 bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, double kc,
-                  Vec3* f_node, Mat3* dfdc, Vec3* dir);
+                  Vec3* f_node, Mat3* dfdc, Vec3* dir, double* depth = nullptr);
 
 // The contact stage alone for probe k (kNodes: the node law against x, nodes held; kSurface: the
 // proxy stage, moving probe->proxy) at the device target `center` (m) with a sphere or punch

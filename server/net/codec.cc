@@ -151,6 +151,9 @@ void encode_stats(const LoopStatsData& s, const Counters& c, v1::LoopStats* out)
   auto* codes = out->mutable_errors_by_code();
   codes->Resize(kNumErrorCodes, 0);  // keeps capacity: no allocation after the first frame
   for (int k = 0; k < kNumErrorCodes; ++k) codes->Set(k, s.errors_by_code[k]);
+  auto* stages = out->mutable_stage_ns();
+  stages->Resize(kNumStages, 0);
+  for (int k = 0; k < kNumStages; ++k) stages->Set(k, c.stage_ns[k]);
 }
 
 void encode_force(const ProbeInput& in, const ProbeState& probe, std::uint64_t tick,

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <random>
 
@@ -406,6 +407,42 @@ TEST(StepTest, HysteresisLoopDissipatesTheAnalyticEnergy) {
   }
   const double expect = M_PI * d0 * d0 * km * (w * tau) / (1 + w * tau * w * tau);
   EXPECT_NEAR(work, expect, 0.03 * expect);
+}
+
+// The stage timers cover a step without gaps or overlap: their sum over a run equals the steady
+// clock's time around the step calls, less only the calls' own entry and exit.
+TEST(StepTest, StageTimersAddUpToTheTimeOfTheSteps) {
+  BodySpec b;
+  b.mesh = make_box_lattice(Vec3(0.04, 0.04, 0.02), {8, 8, 4});
+  SpringCard c;
+  c.conical = ConicalCard{5e7, 1e-3, 2e-3, 8e-3, 10e-3, 3};
+  b.groups.push_back({"tissue", c, kAllFamilies, {}, Vec3::Zero(), 10});
+  FixedSelector base;
+  base.kind = FixedSelector::Kind::kPlane;
+  b.fixed.push_back(base);
+  b.options.mass_damping = 30;
+  b.probes.push_back(ProbeSpec{});
+  Model m;
+  ASSERT_EQ(build_model(b, &m), "");
+  State s = make_state(m);
+  Workspace ws(m);
+  std::uint64_t wall = 0;
+  for (int t = 0; t < 300; ++t) {
+    set_probe(s, 0, Vec3(0.02, 0.02, 0.025 - 2e-5 * t));
+    const auto t0 = std::chrono::steady_clock::now();
+    step(m, s, ws);
+    wall +=
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0)
+            .count();
+  }
+  std::uint64_t sum = 0;
+  for (std::uint64_t ns : s.counters.stage_ns) sum += ns;
+  EXPECT_LE(sum, wall);
+  EXPECT_GE(sum, wall - 300 * 2000) << "more than 2 us per step outside every stage";
+  EXPECT_GT(s.counters.stage_ns[static_cast<int>(Stage::kSprings)], 0u);
+  EXPECT_GT(s.counters.stage_ns[static_cast<int>(Stage::kContact)], 0u);
+  EXPECT_GT(s.counters.stage_ns[static_cast<int>(Stage::kIntegrate)], 0u);
+  EXPECT_STREQ(stage_name(Stage::kHardStop), "hard_stop");
 }
 
 }  // namespace

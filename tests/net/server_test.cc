@@ -232,6 +232,9 @@ TEST_P(ServerTest, StateFramesArriveWithIncreasingTicks) {
   EXPECT_GT(s.ticks(), 0u);
   EXPECT_EQ(s.rate_hz(), 1000);
   EXPECT_EQ(s.errors_by_code_size(), kNumErrorCodes);
+  ASSERT_EQ(s.stage_ns_size(), kNumStages);  // the step's stage timers, published
+  EXPECT_GT(s.stage_ns(static_cast<int>(Stage::kSprings)), 0u);
+  EXPECT_GT(s.stage_ns(static_cast<int>(Stage::kIntegrate)), 0u);
   EXPECT_GT(s.window(), 0u);
   EXPECT_GT(s.step_p50_us(), 0);
   EXPECT_LE(s.step_p50_us(), s.step_max_us());

@@ -1,0 +1,209 @@
+// Contact stage: probes (node law or surface proxy, core/contact.h) and planes against the body
+// (step.h), the explicit integrators' semi-implicit contact update, and the between-tick reply.
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "core/body.h"
+#include "core/contact.h"
+#include "core/step_detail.h"
+#include "core/volume.h"
+
+namespace conica {
+namespace detail {
+namespace {
+
+// Marks node i as having a contact term this evaluation.
+void list_contact_node(Workspace& ws, int i) {
+  if (ws.in_contact[i]) return;
+  ws.in_contact[i] = 1;
+  ws.contact_nodes[ws.num_contact_nodes++] = i;
+}
+
+}  // namespace
+
+// A probe with the node contact law (step.h): every node inside its sphere, or the listed ones
+// only (`nodes`).
+// The node law of probe k at `center` against positions x, every node or the listed ones
+// (`nodes`): fills probe's force, stiffness and contacts; with a workspace also adds the nodes'
+// forces to ws->force and, with the Jacobian, their scaled normals to ws->contact_n.
+void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
+                        ProbeState* p, Workspace* ws, bool with_jacobian,
+                        const std::vector<int>* nodes) {
+  const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
+  const double h = detail::substep_of(m);
+  p->force.setZero();
+  p->stiffness.setZero();
+  p->contacts = 0;
+  const double R = probe_radius(m, k, *p);
+  const double kc = m.probes[k].stiffness;
+  for (int n = 0; n < nn; ++n) {
+    const int i = nodes ? (*nodes)[n] : n;
+    Vec3 f, dir;
+    Mat3 dfdc;
+    if (!node_contact(x[i], m.normal[i], center, R, kc, &f, &dfdc, &dir)) continue;
+    p->force -= f;
+    p->stiffness += dfdc;
+    ++p->contacts;
+    if (!ws) continue;
+    ws->force[i] += f;
+    // Jacobian h^2 k n n^T stored as a scaled direction (two probes on one node: approximate).
+    if (with_jacobian && m.fixed[i] != 7) {
+      ws->contact_n[i] += std::sqrt(h * h * kc) * dir;
+      list_contact_node(*ws, i);
+    }
+  }
+}
+
+// Contact of probes (at their proxies, core/contact.h) and planes with the body: forces into
+// ws.force, each probe node's lumped layer stiffness into ws.contact_block and, with the
+// Jacobian, each plane node's scaled normal into ws.contact_n. Planes act on every node, or on
+// the listed ones only (`nodes`; the multi-rate far field keeps its nodes out of contact, see
+// far_step); a probe's candidate triangles are woken with the region (update_region).
+void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
+                    const std::vector<int>* nodes) {
+  const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
+  const double h = detail::substep_of(m);
+  for (int q = 0; q < ws.num_contact_nodes; ++q) {
+    const int i = ws.contact_nodes[q];
+    ws.contact_n[i].setZero();
+    ws.contact_block[i].setZero();
+    ws.in_contact[i] = 0;
+  }
+  ws.num_contact_nodes = 0;
+  for (size_t q = 0; q < m.probes.size(); ++q) {
+    if (m.probes[q].contact == ContactModel::kNodes) {
+      ProbeState& p = s.probes[q];
+      if (p.active) {
+        node_probe_contact(m, s.x, static_cast<int>(q), p.center, &p, &ws, with_jacobian, nodes);
+      } else {
+        p.force.setZero();
+        p.stiffness.setZero();
+        p.contacts = 0;
+      }
+      continue;
+    }
+    const ProbeState& p = s.probes[q];
+    if (!p.active || !p.proxy_placed) continue;
+    const std::vector<int>& cand = ws.probe_candidates[q];
+    ToolContact c;
+    tool_contact(m, static_cast<int>(q), probe_radius(m, static_cast<int>(q), p), p.proxy, s.x,
+                 cand.data(), static_cast<int>(cand.size()), &c, ws.force.data(),
+                 ws.contact_block.data());
+    if (c.faces == 0) continue;
+    friction_forces(m, static_cast<int>(q), p, s.x, ws.force.data(), ws.contact_block.data());
+    for (int t : cand)
+      for (int i : m.surface[t]) list_contact_node(ws, i);
+    if (p.stick >= 0)
+      for (int i : m.surface[p.stick]) list_contact_node(ws, i);
+  }
+  for (size_t q = 0; q < m.planes.size(); ++q) {
+    PlaneState& pl = s.planes[q];
+    pl.force.setZero();
+    pl.contacts = 0;
+    const Vec3& n = m.planes[q].normal;
+    const double kp = m.planes[q].stiffness;
+    for (int t = 0; t < nn; ++t) {
+      const int i = nodes ? (*nodes)[t] : t;
+      const double depth = pl.offset - n.dot(s.x[i]);
+      if (depth <= 0) continue;
+      const Vec3 f = kp * depth * n;
+      ws.force[i] += f;
+      pl.force -= f;
+      ++pl.contacts;
+      // One normal per node for the Jacobian: a node behind two plates keeps the first's, a rare
+      // case that only slows convergence.
+      if (with_jacobian && m.fixed[i] != 7 && ws.contact_n[i].squaredNorm() == 0) {
+        ws.contact_n[i] = std::sqrt(h * h * kp) * n;
+        list_contact_node(ws, i);
+      }
+    }
+  }
+}
+
+// The proxy stage: every probe's proxy moves toward its device target with the nodes held
+// (core/contact.h), leaving the triangles near it for the contact stage.
+void update_proxies(const Model& m, State& s, Workspace& ws) {
+  for (size_t q = 0; q < m.probes.size(); ++q)
+    if (m.probes[q].contact == ContactModel::kSurface)
+      update_proxy(m, static_cast<int>(q), s.x, &ws.probe_candidates[q], &s.probes[q]);
+}
+
+// Explicit integrators take the contact layer semi-implicitly (step.h): a node with a layer
+// stiffness B advances with m (m I + h^2 B)^-1 f instead of f, on its free axes.
+void semi_implicit_contact(const Model& m, Workspace& ws, double h) {
+  for (int q = 0; q < ws.num_contact_nodes; ++q) {
+    const int i = ws.contact_nodes[q];
+    if (m.fixed[i] == 7) continue;
+    const Mat3& B = ws.contact_block[i];
+    if (B.squaredNorm() == 0) continue;
+    const Vec3& free = m.free_axes[i];
+    const Mat3 A =
+        m.mass[i] * Mat3::Identity() + h * h * (free.asDiagonal() * B * free.asDiagonal());
+    ws.force[i] = m.mass[i] * A.ldlt().solve(ws.force[i]);
+  }
+}
+
+}  // namespace detail
+
+using namespace detail;
+
+bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, double kc,
+                  Vec3* f_node, Mat3* dfdc, Vec3* dir, double* depth_out) {
+  const Vec3 u = x - c;
+  const double r2 = u.squaredNorm(), R2 = R * R;
+  if (r2 >= R2) return false;
+  if (normal.squaredNorm() > 0) {
+    // Surface node: pushed inward along -n by the depth s = min(a + sqrt(a^2 - r^2 + R^2),
+    // kContactDepthCap (R - r)), a = u.n: the distance it needs to leave the sphere along -n
+    // (so the probe is pushed out of the body even when it has slipped between surface nodes),
+    // capped by a multiple of its radial depth, which makes the force vanish on the sphere
+    // (continuous) with a bounded slope (see step.h).
+    const double a = u.dot(normal);
+    const double sq = std::sqrt(std::max(a * a - r2 + R2, 1e-12 * R2));
+    const double r = std::sqrt(r2);
+    const double cap = kContactDepthCap * (R - r);
+    Vec3 dsdu;
+    double depth;
+    if (a + sq <= cap || !(r > 1e-12 * R)) {
+      depth = a + sq;
+      dsdu = normal + (a * normal - u) / sq;
+    } else {
+      depth = cap;
+      dsdu = -kContactDepthCap / r * u;
+    }
+    *f_node = -kc * depth * normal;
+    *dfdc = -kc * normal * dsdu.transpose();
+    *dir = normal;
+    if (depth_out) *depth_out = depth;
+  } else {
+    // Interior node (a probe that went deep): pushed radially out of the sphere. A node at the
+    // exact centre is pushed along +z: bounded, never NaN.
+    const double r = std::sqrt(r2);
+    const bool centred = !(r > 1e-12 * R);
+    const Vec3 n = centred ? Vec3::UnitZ() : Vec3(u / r);
+    *f_node = kc * (R - r) * n;
+    const Mat3 nnT = n * n.transpose();
+    *dfdc = kc * (-nnT + (centred ? 0.0 : (R - r) / r) * (Mat3::Identity() - nnT));
+    *dir = n;
+    if (depth_out) *depth_out = R - r;
+  }
+  return true;
+}
+
+void probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
+                   double radius, ProbeState* probe, std::vector<int>* candidates) {
+  probe->center = center;
+  probe->active = true;
+  if (radius > 0) probe->radius = radius;
+  if (m.probes[k].contact == ContactModel::kSurface)
+    update_proxy(m, k, x, candidates, probe);
+  else
+    node_probe_contact(m, x, k, center, probe);
+}
+
+}  // namespace conica

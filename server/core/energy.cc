@@ -1,0 +1,103 @@
+// Stored and kinetic energy (step.h).
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "core/body.h"
+#include "core/contact.h"
+#include "core/step_detail.h"
+#include "core/volume.h"
+
+namespace conica {
+
+using namespace detail;
+
+double potential_energy(const Model& m, const State& s) {
+  double e = 0;
+  for (const SpringGroup& g : m.groups) {
+    for (int k = g.begin; k < g.end; ++k) {
+      const double l = (s.x[m.spring_j[k]] - s.x[m.spring_i[k]]).norm();
+      const double a = m.force_scale[k], b = m.deflection_scale[k];
+      const double d = b * (m.rest_length[k] - l);
+      const double law_e = g.law ? g.law->energy(d) : 0.5 * g.card.hooke_k * d * d;
+      const double dm = d - s.maxwell[k];
+      e += (a / b) * (law_e + 0.5 * g.card.maxwell_k * dm * dm);
+    }
+  }
+  if (m.bulk_modulus > 0) {
+    Vec3 g[8];
+    double vq[8];
+    const bool spread = m.spread_modulus > 0;
+    for (size_t t = 0; t < m.tetrahedra.size(); ++t) {
+      const double d = element_volume(s.x, m.tetrahedra[t].data(), 4, g) - m.tet_rest_volume[t];
+      e += 0.5 * m.bulk_modulus / std::abs(m.tet_rest_volume[t]) * d * d;
+    }
+    for (size_t h = 0; h < m.hexahedra.size(); ++h) {
+      const double v0 = m.hex_rest_volume[h];
+      const double d = element_volume(s.x, m.hexahedra[h].data(), 8, g, vq) - v0;
+      e += 0.5 * m.bulk_modulus / std::abs(v0) * d * d;
+      for (int q = 0; q < 8 && spread; ++q) {
+        const double dq = vq[q] - m.hex_rest_gauss[8 * h + q] - d / 8;
+        e += 0.5 * 8 * m.spread_modulus / std::abs(v0) * dq * dq;
+      }
+    }
+  }
+  if (m.shear_modulus > 0) {
+    const Vec3* b = m.shear_b.data();
+    const double* v0 = m.shear_v0.data();
+    auto point = [&](const int* nodes, int n) {
+      const Mat3 F = deformation_gradient(s.x, nodes, n, b);
+      Mat3 P;
+      double jm;
+      e += *v0++ * isochoric_neo_hookean(F.data(), m.shear_modulus, P.data(), &jm);
+      b += n;
+    };
+    for (const auto& t : m.tetrahedra) point(t.data(), 4);
+    for (const auto& h : m.hexahedra)
+      for (int q = 0; q < 8; ++q) point(h.data(), 8);
+  }
+  for (size_t q = 0; q < m.probes.size(); ++q) {
+    const ProbeState& p = s.probes[q];
+    if (!p.active || m.probes[q].contact != ContactModel::kNodes) continue;
+    const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
+    const double kc = m.probes[q].stiffness;
+    for (int i = 0; i < m.num_nodes(); ++i) {
+      Vec3 f, dir;
+      Mat3 dfdc;
+      double depth;  // the law's depth, with the cap the force has (node_contact)
+      if (node_contact(s.x[i], m.normal[i], p.center, R, kc, &f, &dfdc, &dir, &depth))
+        e += 0.5 * kc * depth * depth;
+    }
+  }
+  for (size_t q = 0; q < m.probes.size(); ++q) {
+    const ProbeState& p = s.probes[q];
+    if (!p.active || !p.proxy_placed || m.probes[q].contact != ContactModel::kSurface) continue;
+    ToolContact c;
+    const double R = probe_radius(m, static_cast<int>(q), p);
+    tool_contact(m, static_cast<int>(q), R, p.proxy, s.x, nullptr, 0, &c);
+    // The layer and the virtual coupling between the device and the proxy.
+    e += c.energy +
+         0.5 * coupling_stiffness(m, static_cast<int>(q), R) * (p.proxy - p.center).squaredNorm();
+  }
+  for (size_t q = 0; q < m.planes.size(); ++q)
+    for (const Vec3& x : s.x) {
+      const double depth = s.planes[q].offset - m.planes[q].normal.dot(x);
+      if (depth > 0) e += 0.5 * m.planes[q].stiffness * depth * depth;
+    }
+  const int nn = m.num_nodes();
+  for (int i = 0; i < nn; ++i)
+    e -= m.mass[i] * m.options.gravity.cwiseProduct(m.free_axes[i]).dot(s.x[i] - m.rest[i]);
+  return e;
+}
+
+double kinetic_energy(const Model& m, const State& s) {
+  double e = 0;
+  for (int i = 0; i < m.num_nodes(); ++i) e += 0.5 * m.mass[i] * s.v[i].squaredNorm();
+  return e;
+}
+
+}  // namespace conica
