@@ -5,13 +5,13 @@
 #   BUILD_DIR=b JOBS=1 scripts/test-sanitize.sh
 # Excluded (ASAN_EXCLUDE, a ctest -E regex): the lab calibration and compression suites (Ceres
 # fits that run minutes under ASan and read no outside input) and the Python client end-to-end
-# tests (they time a real-time server that ASan slows 2-3x; the same paths run in server_test
-# and fault_test here).
+# tests and the ROS bridge at 1 kHz (they time a real-time server that ASan slows 2-3x; the same
+# paths run in server_test and fault_test here).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build-asan}
 JOBS=${JOBS:-$(nproc)}
-EXCLUDE=${ASAN_EXCLUDE:-'^(Calibration|Compression|net_python_client|clients_end_to_end)'}
+EXCLUDE=${ASAN_EXCLUDE:-'^(Calibration|Compression|net_python_client|clients_end_to_end|ros_node_end_to_end)'}
 
 cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCONICA_SANITIZE=ON -DCONICA_BUILD_BENCH=OFF -DCONICA_NATIVE=OFF >/dev/null
