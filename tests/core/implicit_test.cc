@@ -11,24 +11,12 @@
 #include "core/body.h"
 #include "core/step.h"
 #include "core/step_detail.h"
+#include "lattice_meshes.h"
 
 namespace conica {
 namespace {
 
-Mesh Tetrahedralised(const Mesh& hexes) {
-  Mesh t;
-  t.nodes = hexes.nodes;
-  static constexpr int kTets[6][4] = {{0, 1, 2, 6}, {0, 2, 3, 6}, {0, 3, 7, 6},
-                                      {0, 7, 4, 6}, {0, 4, 5, 6}, {0, 5, 1, 6}};
-  for (const auto& h : hexes.hexahedra)
-    for (const auto& q : kTets) {
-      std::array<int, 4> e{h[q[0]], h[q[1]], h[q[2]], h[q[3]]};
-      if (tet_volume(t.nodes[e[0]], t.nodes[e[1]], t.nodes[e[2]], t.nodes[e[3]]) < 0)
-        std::swap(e[2], e[3]);
-      t.tetrahedra.push_back(e);
-    }
-  return t;
-}
+using testing_meshes::Tetrahedralised;
 
 // A clamped 20 x 20 x 10 mm block, its free nodes stretched 4 % away from the origin so that every
 // spring is in tension, pressed on by a side plate; lattice (springs in runs) or tetrahedra
