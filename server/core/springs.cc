@@ -169,11 +169,14 @@ void refresh_directions(const Model& m, Workspace& ws) {
   const int ns = m.num_springs();
   for (int k = 0; k < ns; ++k) {
     const int i = m.spring_i[k], j = m.spring_j[k];
-    const Vec3 u(ws.px[j] - ws.px[i], ws.py[j] - ws.py[i], ws.pz[j] - ws.pz[i]);
-    const Vec3 d = u / std::max(u.norm(), 1e-300);
-    ws.ux[k] = d.x();
-    ws.uy[k] = d.y();
-    ws.uz[k] = d.z();
+    // The arithmetic of normalise_chunk, so that a direction is the same bits whether the force
+    // pass kept it or it is refreshed here (a replay must not depend on which path ran).
+    const double dx = ws.px[j] - ws.px[i], dy = ws.py[j] - ws.py[i], dz = ws.pz[j] - ws.pz[i];
+    const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double inv = 1.0 / std::max(l, 1e-300);
+    ws.ux[k] = dx * inv;
+    ws.uy[k] = dy * inv;
+    ws.uz[k] = dz * inv;
   }
   ws.directions_kept = true;
 }
