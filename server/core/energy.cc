@@ -63,7 +63,7 @@ double potential_energy(const Model& m, const State& s) {
   for (size_t q = 0; q < m.probes.size(); ++q) {
     const ProbeState& p = s.probes[q];
     if (!p.active || m.probes[q].contact != ContactModel::kNodes) continue;
-    const double R = p.radius > 0 ? p.radius : m.probes[q].radius;
+    const double R = probe_radius(m, static_cast<int>(q), p);
     const double kc = m.probes[q].stiffness;
     for (int i = 0; i < m.num_nodes(); ++i) {
       Vec3 f, dir;

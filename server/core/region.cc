@@ -115,7 +115,7 @@ void update_region(const Model& m, State& s, Workspace& ws) {
   for (size_t q = 0; q < m.probes.size() && np < 8; ++q) {
     const ProbeState& p = s.probes[q];
     if (!p.active) continue;
-    const double rp = p.radius > 0 ? p.radius : m.probes[q].radius;
+    const double rp = probe_radius(m, static_cast<int>(q), p);
     double boussinesq =
         p.force.norm() * (1 - kNu * kNu) / (M_PI * ws.modulus * m.options.active_tolerance);
     // Multi-rate: the radius grows in steps of 10 % of itself, so that a growing press rebuilds
