@@ -19,6 +19,7 @@ ProbeStream; false: each waits for its reply), ~link (auto, package, zmq: for GE
 stream and unpipelined probes)."""
 import sys
 import threading
+import time
 
 import numpy as np
 import rospy
@@ -146,7 +147,22 @@ class ConicaRosNode:
                       self.replies, self.timeouts, self.errors, self.wrong_frame)
 
 
+def wait_for_master(poll_s=0.2):
+    """Block until the ROS master answers. rospy.init_node retries its registration but not the
+    private parameters (``_endpoint:=...``) it sets first, so a node started a moment before
+    rosmaster would die with ConnectionRefusedError; roslaunch and rosrun users never see this."""
+    import rosgraph
+    said = False
+    while not rosgraph.is_master_online():
+        if not said:
+            sys.stderr.write("conica-ros: waiting for the ROS master at %s\n"
+                             % rosgraph.get_master_uri())
+            said = True
+        time.sleep(poll_s)
+
+
 def main(argv=None):
+    wait_for_master()
     rospy.init_node("conica_ros", argv=argv if argv is not None else sys.argv)
     try:
         node = ConicaRosNode()
