@@ -53,6 +53,13 @@ struct NonlinearKernel {
   }
 };
 
+// The kernel over a table of n cubic segments per coefficient (c0 c1 c2 c3 in turn).
+inline NonlinearKernel make_kernel(double S, double inv_h, double r1, double A, double c,
+                                   double sqrt_cA, const double* tab, int n) {
+  return NonlinearKernel{S,   inv_h,   r1,          A,           c,    sqrt_cA,
+                         tab, tab + n, tab + 2 * n, tab + 3 * n, n - 1};
+}
+
 }  // namespace
 
 std::string validate(const ConicalCard& c) {
@@ -308,17 +315,7 @@ LawSample ConicalLaw::evaluate_plain(double delta) const {
     return {Pcap_ + kcap_ * (delta - dcap_), kcap_, delta > S_ ? Phase::kSolid : Phase::kNonlinear};
   }
   const double* tab = table_.data();
-  const NonlinearKernel kern{S_,
-                             inv_h_,
-                             r1_,
-                             A_,
-                             c_,
-                             sqrt_cA_,
-                             tab,
-                             tab + kTableSegments,
-                             tab + 2 * kTableSegments,
-                             tab + 3 * kTableSegments,
-                             kTableSegments - 1};
+  const NonlinearKernel kern = make_kernel(S_, inv_h_, r1_, A_, c_, sqrt_cA_, tab, kTableSegments);
   LawSample out{0, 0, Phase::kNonlinear};
   kern(delta, &out.force, &out.stiffness);
   return out;
@@ -339,17 +336,7 @@ template <bool kShifted>
 void ConicalLaw::evaluate_batch_impl(const double* __restrict deflection, double* __restrict force,
                                      double* __restrict stiffness, int n) const {
   const double* tab = table_.data();
-  const NonlinearKernel kern{S_,
-                             inv_h_,
-                             r1_,
-                             A_,
-                             c_,
-                             sqrt_cA_,
-                             tab,
-                             tab + kTableSegments,
-                             tab + 2 * kTableSegments,
-                             tab + 3 * kTableSegments,
-                             kTableSegments - 1};
+  const NonlinearKernel kern = make_kernel(S_, inv_h_, r1_, A_, c_, sqrt_cA_, tab, kTableSegments);
   const double dt = dt_, dcap = dcap_, K0 = K0_, Pcap = Pcap_, kcap = kcap_, kcf = kcap_force_;
   const double d0 = d0_, F0 = F0_;
   for (int begin = 0; begin < n; begin += kBatchChunk) {

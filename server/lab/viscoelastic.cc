@@ -33,18 +33,24 @@ struct Rig {
   }
 };
 
+// A history holding its start: t = 0, no displacement, no force.
+PlateHistory started_history() {
+  PlateHistory h;
+  h.time.push_back(0);
+  h.displacement.push_back(0);
+  h.force.push_back(0);
+  return h;
+}
+
 }  // namespace
 
 PlateHistory displacement_program(const Model& model, const std::function<double(double)>& u,
                                   double duration) {
   Rig rig(model);
   Workspace ws(rig.m);
-  PlateHistory h;
   const double dt = rig.m.options.dt;
   const long steps = static_cast<long>(std::ceil(duration / dt - 1e-9));
-  h.time.push_back(0);
-  h.displacement.push_back(0);
-  h.force.push_back(0);
+  PlateHistory h = started_history();
   for (long k = 1; k <= steps; ++k) {
     const double t = dt * static_cast<double>(k);
     const double uk = u(t);
@@ -69,12 +75,9 @@ PlateHistory force_program(const Model& model, const std::function<double(double
   }
   Rig rig(model);
   Workspace ws(rig.m);
-  PlateHistory h;
   const double dt = rig.m.options.dt;
   const long steps = static_cast<long>(std::ceil(duration / dt - 1e-9));
-  h.time.push_back(0);
-  h.displacement.push_back(0);
-  h.force.push_back(0);
+  PlateHistory h = started_history();
   double u = 0, f = 0;
   for (long k = 1; k <= steps; ++k) {
     const double t = dt * static_cast<double>(k);
