@@ -57,6 +57,13 @@ std::vector<Vec3> Jittered(const Model& m, double amplitude, unsigned seed) {
   return x;
 }
 
+// x + s p.
+std::vector<Vec3> Displaced(const std::vector<Vec3>& x, const std::vector<Vec3>& p, double s) {
+  std::vector<Vec3> out = x;
+  for (size_t i = 0; i < out.size(); ++i) out[i] += s * p[i];
+  return out;
+}
+
 template <typename Term>
 std::vector<Vec3> Forces(const Model& m, const std::vector<Vec3>& x, ElementScratch& E) {
   std::vector<Vec3> f(m.num_nodes(), Vec3::Zero());
@@ -178,14 +185,9 @@ TEST(ElementTermsTest, VolumeBlockIsTheExactHessianAtRest) {
     for (int i = 0; i < m.num_nodes(); ++i) p[i] -= m.rest[i];
     Forces<VolumeTerm>(m, m.rest, ws.elements);  // keeps the gradients at rest
     const std::vector<Vec3> hp = Product<VolumeTerm>(m, ws.elements, h2, p);
-    std::vector<Vec3> xp = m.rest, xm = m.rest;
-    for (int i = 0; i < m.num_nodes(); ++i) {
-      xp[i] += eps * p[i];
-      xm[i] -= eps * p[i];
-    }
     ElementScratch scratch = ws.elements;
-    const std::vector<Vec3> fp = Forces<VolumeTerm>(m, xp, scratch);
-    const std::vector<Vec3> fm = Forces<VolumeTerm>(m, xm, scratch);
+    const std::vector<Vec3> fp = Forces<VolumeTerm>(m, Displaced(m.rest, p, eps), scratch);
+    const std::vector<Vec3> fm = Forces<VolumeTerm>(m, Displaced(m.rest, p, -eps), scratch);
     double largest = 0;
     for (const Vec3& v : hp) largest = std::max(largest, v.cwiseAbs().maxCoeff());
     ASSERT_GT(largest, 0);
