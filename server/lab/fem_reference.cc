@@ -215,7 +215,7 @@ std::string write_calculix_deck(const FemMesh& mesh, const YeohLaw& law, const F
   for (size_t i = 0; i < mesh.nodes.size(); ++i)
     o << i + 1 << ", " << mesh.nodes[i].x() << ", " << mesh.nodes[i].y() << ", "
       << mesh.nodes[i].z() << "\n";
-  o << "*ELEMENT, TYPE=C3D20R, ELSET=EALL\n";
+  o << "*ELEMENT, TYPE=" << (c.full_integration ? "C3D20" : "C3D20R") << ", ELSET=EALL\n";
   for (size_t e = 0; e < mesh.elements.size(); ++e) {
     o << e + 1;  // at most 16 entries a line: the number and 15 nodes, then 5
     for (int a = 0; a < 20; ++a) o << (a == 15 ? ",\n" : ", ") << mesh.elements[e][a] + 1;

@@ -56,6 +56,7 @@ struct FemCase {
   double punch_radius = 0;  // m, indent
   bool punch_bonded = false;  // indent: punch nodes held in x and y
   int increments = 20;      // at least this many (fixed largest increment 1 / increments)
+  bool full_integration = false;  // C3D20 (27 Gauss points) instead of C3D20R (8)
 };
 
 // The CalculiX input deck of `c` on `mesh` with `law`. Nodes of the driven set: the top face

@@ -55,7 +55,7 @@ void register_fem_reference(CLI::App& app, Runner* run) {
     std::vector<std::string> fit_data;
     std::vector<double> specimen_mm = {50, 30};
     double to_strain = 0.3, depth_mm = 0, radius_mm = 0, poisson = -2, fit_max_strain = 0.5;
-    bool bonded = false, punch_bonded = false, full = false, no_run = false;
+    bool bonded = false, punch_bonded = false, full = false, no_run = false, c3d20 = false;
     int refine = 2, increments = 20;
   };
   auto o = std::make_shared<Opts>();
@@ -72,6 +72,8 @@ void register_fem_reference(CLI::App& app, Runner* run) {
   cmd->add_flag("--punch-bonded", o->punch_bonded, "indent: the punch holds its nodes in x, y");
   cmd->add_option("--refine", o->refine, "each scene hexahedron split into N^3 C3D20R elements")
       ->capture_default_str();
+  cmd->add_flag("--c3d20", o->c3d20,
+                "fully integrated C3D20 elements (default C3D20R; a punch's edge needs C3D20)");
   cmd->add_flag("--full", o->full, "model the whole body (default: a quarter when symmetric)");
   cmd->add_option("--increments", o->increments, "at least this many load increments")
       ->capture_default_str();
@@ -138,6 +140,7 @@ void register_fem_reference(CLI::App& app, Runner* run) {
       c.punch_radius = o->radius_mm * 1e-3;
       c.travel = c.test == FemCase::Test::kCompress ? o->to_strain * (zhi - zlo) : o->depth_mm * 1e-3;
       c.increments = o->increments;
+      c.full_integration = o->c3d20;
 
       // The law, fitted to the same data as the card.
       const double nu = o->poisson > -1
@@ -214,8 +217,9 @@ void register_fem_reference(CLI::App& app, Runner* run) {
           return 1;
         }
       }
-      std::fprintf(stderr, "%s: wrote %s: %zu C3D20R elements, %zu nodes (%s), %d driven nodes\n",
-                   me, inp.c_str(), mesh.elements.size(), mesh.nodes.size(),
+      std::fprintf(stderr, "%s: wrote %s: %zu %s elements, %zu nodes (%s), %d driven nodes\n",
+                   me, inp.c_str(), mesh.elements.size(), o->c3d20 ? "C3D20" : "C3D20R",
+                   mesh.nodes.size(),
                    mesh.quarter ? "a quarter, symmetry planes x and y" : "the whole body", driven);
       if (o->no_run) return 0;
       if (std::system("command -v ccx >/dev/null 2>&1") != 0) {
