@@ -29,14 +29,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--out", required=True, help="PNG to write")
     ap.add_argument("--case", nargs=3, action="append", default=[],
-                    metavar=("TITLE", "CONICA_CSV", "REFERENCE_CSV"))
+                    metavar=("TITLE", "CONICA_CSV", "REFERENCE_CSV"),
+                    help="a reference of - draws conica alone")
     ap.add_argument("--profile", default="", help="surface profile CSV of conica-lab validate")
     a = ap.parse_args()
     n = len(a.case) + (1 if a.profile else 0)
     fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 3.6), squeeze=False)
     for ax, (title, conica, ref) in zip(axes[0], a.case):
-        for path, label, style in ((ref, "CalculiX (C3D20R, Yeoh)", "k-"),
-                                   (conica, "conica", "o--")):
+        for path, label, style in ((ref, "CalculiX (Yeoh)", "k-"), (conica, "conica", "o--")):
+            if path == "-":  # no reference
+                continue
             _, rows = read(path)
             ax.plot([r[0] for r in rows], [r[1] for r in rows], style, label=label, ms=4)
         ax.set_title(title)
