@@ -108,7 +108,8 @@ FemMesh make_c3d20_mesh(const Mesh& mesh, int refine, bool quarter) {
             corners[a] = Vec3(kCorner[a][0], kCorner[a][1], kCorner[a][2]);
             e[a] = at(corners[a]);
           }
-          for (int m = 0; m < 12; ++m) e[8 + m] = at(0.5 * (corners[kEdge[m][0]] + corners[kEdge[m][1]]));
+          for (int m = 0; m < 12; ++m)
+            e[8 + m] = at(0.5 * (corners[kEdge[m][0]] + corners[kEdge[m][1]]));
           out.elements.push_back(e);
         }
   }

@@ -25,7 +25,7 @@ namespace conica::lab {
 struct FemMesh {
   std::vector<Vec3> nodes;  // m
   std::vector<std::array<int, 20>> elements;
-  bool quarter = false;      // only x >= centre.x, y >= centre.y: symmetry planes there
+  bool quarter = false;        // only x >= centre.x, y >= centre.y: symmetry planes there
   Vec3 centre = Vec3::Zero();  // m, of the top face's bounding box (the symmetry axis)
 };
 
@@ -51,11 +51,11 @@ std::string fit_yeoh(const std::vector<double>& strain, const std::vector<double
 
 struct FemCase {
   enum class Test { kCompress, kIndent } test = Test::kCompress;
-  double travel = 0;        // m: plate or punch travel at the end of the step
-  bool bonded = false;      // compress: both plates bonded; indent: base clamped
-  double punch_radius = 0;  // m, indent
-  bool punch_bonded = false;  // indent: punch nodes held in x and y
-  int increments = 20;      // at least this many (fixed largest increment 1 / increments)
+  double travel = 0;              // m: plate or punch travel at the end of the step
+  bool bonded = false;            // compress: both plates bonded; indent: base clamped
+  double punch_radius = 0;        // m, indent
+  bool punch_bonded = false;      // indent: punch nodes held in x and y
+  int increments = 20;            // at least this many (fixed largest increment 1 / increments)
   bool full_integration = false;  // C3D20 (27 Gauss points) instead of C3D20R (8)
 };
 

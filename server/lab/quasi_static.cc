@@ -11,7 +11,8 @@ namespace conica::lab {
 namespace {
 double out_of_balance(const Model& m, const Workspace& ws) {
   double r2 = 0;
-  for (int i = 0; i < m.num_nodes(); ++i) r2 += ws.force[i].cwiseProduct(m.free_axes[i]).squaredNorm();
+  for (int i = 0; i < m.num_nodes(); ++i)
+    r2 += ws.force[i].cwiseProduct(m.free_axes[i]).squaredNorm();
   return std::sqrt(r2);
 }
 }  // namespace

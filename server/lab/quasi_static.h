@@ -35,7 +35,7 @@ struct QuasiStaticOptions {
 };
 
 struct QuasiStaticStats {
-  long steps = 0;               // implicit steps taken in all
+  long steps = 0;  // implicit steps taken in all
   int increments = 0;
   int unconverged = 0;          // increments that hit max_iterations
   double worst_residual = 0;    // largest final out-of-balance / reaction over the increments

@@ -5,6 +5,7 @@
 #include "lab/fem_reference.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -12,7 +13,6 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <unistd.h>
 
 #include "core/body.h"
 
@@ -42,7 +42,8 @@ TEST(FemReferenceTest, QuadraticMeshSharesNodesAndEdges) {
   EXPECT_TRUE(q.quarter);
   EXPECT_EQ(q.elements.size(), 2u);  // one column of the two layers
   // A 3 x 3 lattice has an element across the centre planes: no quarter.
-  EXPECT_FALSE(make_c3d20_mesh(make_box_lattice(Vec3(0.03, 0.03, 0.01), {3, 3, 1}), 1, true).quarter);
+  EXPECT_FALSE(
+      make_c3d20_mesh(make_box_lattice(Vec3(0.03, 0.03, 0.01), {3, 3, 1}), 1, true).quarter);
 }
 
 TEST(FemReferenceTest, YeohFitRecoversItsLawAndTheSmallStrainModulus) {

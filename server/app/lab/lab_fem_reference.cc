@@ -126,8 +126,10 @@ void register_fem_reference(CLI::App& app, Runner* run) {
         return 2;
       }
       if (spec.mesh.hexahedra.empty()) {
-        std::fprintf(stderr, "%s: %s: the body has no hexahedra (needs a lattice, a cylinder or "
-                     "a hexahedral mesh)\n", me, o->scene.c_str());
+        std::fprintf(stderr,
+                     "%s: %s: the body has no hexahedra (needs a lattice, a cylinder or "
+                     "a hexahedral mesh)\n",
+                     me, o->scene.c_str());
         return 2;
       }
       double zlo = spec.mesh.nodes[0].z(), zhi = zlo;
@@ -138,15 +140,15 @@ void register_fem_reference(CLI::App& app, Runner* run) {
       c.bonded = o->bonded;
       c.punch_bonded = o->punch_bonded;
       c.punch_radius = o->radius_mm * 1e-3;
-      c.travel = c.test == FemCase::Test::kCompress ? o->to_strain * (zhi - zlo) : o->depth_mm * 1e-3;
+      c.travel =
+          c.test == FemCase::Test::kCompress ? o->to_strain * (zhi - zlo) : o->depth_mm * 1e-3;
       c.increments = o->increments;
       c.full_integration = o->c3d20;
 
       // The law, fitted to the same data as the card.
-      const double nu = o->poisson > -1
-                            ? o->poisson
-                            : body_poisson(lattice_moduli(spec.groups), spec.bulk_modulus,
-                                           spec.shear_modulus);
+      const double nu = o->poisson > -1 ? o->poisson
+                                        : body_poisson(lattice_moduli(spec.groups),
+                                                       spec.bulk_modulus, spec.shear_modulus);
       std::vector<double> strain, stress;
       std::string source;
       if (!o->fit_data.empty()) {
@@ -200,8 +202,8 @@ void register_fem_reference(CLI::App& app, Runner* run) {
       const FemMesh mesh = make_c3d20_mesh(spec.mesh, o->refine, !o->full);
       std::string deck;
       int driven = 0;
-      const std::string title = "conica-lab fem-reference: " + o->scene + ", " + o->test +
-                                (o->bonded ? " bonded" : "");
+      const std::string title =
+          "conica-lab fem-reference: " + o->scene + ", " + o->test + (o->bonded ? " bonded" : "");
       if (std::string e = write_calculix_deck(mesh, law, c, title, &deck, &driven); !e.empty()) {
         std::fprintf(stderr, "%s: %s: %s\n", me, o->scene.c_str(), e.c_str());
         return 2;
@@ -217,15 +219,16 @@ void register_fem_reference(CLI::App& app, Runner* run) {
           return 1;
         }
       }
-      std::fprintf(stderr, "%s: wrote %s: %zu %s elements, %zu nodes (%s), %d driven nodes\n",
-                   me, inp.c_str(), mesh.elements.size(), o->c3d20 ? "C3D20" : "C3D20R",
+      std::fprintf(stderr, "%s: wrote %s: %zu %s elements, %zu nodes (%s), %d driven nodes\n", me,
+                   inp.c_str(), mesh.elements.size(), o->c3d20 ? "C3D20" : "C3D20R",
                    mesh.nodes.size(),
                    mesh.quarter ? "a quarter, symmetry planes x and y" : "the whole body", driven);
       if (o->no_run) return 0;
       if (std::system("command -v ccx >/dev/null 2>&1") != 0) {
         std::fprintf(stderr,
                      "%s: ccx (CalculiX, Debian package calculix-ccx) is not installed: deck "
-                     "written, not run\n", me);
+                     "written, not run\n",
+                     me);
         return 4;
       }
       const std::string cmdline = "cd '" + o->dir + "' && ccx -i job > job.log 2>&1";
@@ -248,7 +251,8 @@ void register_fem_reference(CLI::App& app, Runner* run) {
         return 1;
       }
       std::fputs("displacement_mm,force_N\n", out);
-      for (const FemPoint& p : curve) std::fprintf(out, "%.6f,%.9g\n", p.displacement * 1e3, p.force);
+      for (const FemPoint& p : curve)
+        std::fprintf(out, "%.6f,%.9g\n", p.displacement * 1e3, p.force);
       if (out != stdout) std::fclose(out);
       std::fprintf(stderr, "%s: ccx %s: %zu increments, force at %.4g mm: %.6g N\n", me,
                    complete ? "converged" : "STOPPED EARLY", curve.size() - 1,

@@ -42,8 +42,7 @@ void register_indent(CLI::App& app, Runner* run) {
       ->capture_default_str();
   cmd->callback([o, run] {
     *run = [o]() -> int {
-      if (!(o->radius_mm > 0) || !(o->depth_mm > 0) || o->samples < 1 ||
-          !(o->tolerance > 0)) {
+      if (!(o->radius_mm > 0) || !(o->depth_mm > 0) || o->samples < 1 || !(o->tolerance > 0)) {
         std::fprintf(stderr,
                      "conica-lab indent: need --punch-radius > 0, --depth > 0, --samples >= 1, "
                      "--tolerance > 0\n");
@@ -86,10 +85,10 @@ void register_indent(CLI::App& app, Runner* run) {
                    "(tolerance %.2g), %d increment(s) unconverged, rollbacks %llu, hard stops "
                    "%llu; force at %.4g mm: %.6g N\n",
                    o->scene.c_str(), static_cast<int>(punch.size()), o->radius_mm,
-                   o->punch_bonded ? "bonded" : "frictionless",
-                   o->bonded ? "bonded" : "sliding", qs.increments, qs.steps,
-                   qs.unconverged == 0 ? "converged" : "NOT CONVERGED", qs.worst_residual,
-                   qo.tolerance, qs.unconverged, static_cast<unsigned long long>(qs.rollbacks),
+                   o->punch_bonded ? "bonded" : "frictionless", o->bonded ? "bonded" : "sliding",
+                   qs.increments, qs.steps, qs.unconverged == 0 ? "converged" : "NOT CONVERGED",
+                   qs.worst_residual, qo.tolerance, qs.unconverged,
+                   static_cast<unsigned long long>(qs.rollbacks),
                    static_cast<unsigned long long>(qs.hard_stops), o->depth_mm, c.back().force);
       return qs.unconverged == 0 ? 0 : 3;
     };

@@ -14,11 +14,11 @@
 //    half-space: F = 2 a E* d, and the surface outside it sinks w(r) = (2 d / pi) asin(a / r).
 //    The block is 60 x 60 x 30 mm bonded to its base (h / a = 6), so the finite layer stiffens the
 //    punch a little over the half-space value.
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -115,8 +115,9 @@ void register_validate(CLI::App& app, Runner* run) {
       std::error_code ec;
       std::filesystem::create_directories(o->out_dir, ec);
       const Moduli mo = moduli(cyl);
-      std::printf("EF30 card, isotropic estimate: E %.5g Pa, Poisson %.4f, K %.5g Pa, G %.5g Pa\n\n",
-                  mo.E, mo.nu, mo.K, mo.G);
+      std::printf(
+          "EF30 card, isotropic estimate: E %.5g Pa, Poisson %.4f, K %.5g Pa, G %.5g Pa\n\n", mo.E,
+          mo.nu, mo.K, mo.G);
       std::printf("| case | resolution | nodes | conica | reference | difference |\n");
       std::printf("|---|---|---|---|---|---|\n");
       std::string error;
@@ -137,14 +138,16 @@ void register_validate(CLI::App& app, Runner* run) {
           }
           e_app[bonded] = f / (area * strain);  // over the lattice's rest cross-section
         }
-        std::printf("| frictionless cylinder 50 x 30 mm, strain %.3g: apparent modulus | %d x %d "
-                    "cells | %ld | %.5g Pa | %.5g Pa (E, isotropic estimate) | %+.2f %% |\n",
-                    strain, r[0], r[1], n, e_app[0], mo.E, 100 * (e_app[0] / mo.E - 1));
-        std::printf("| bonded / frictionless cylinder, same strain: modulus ratio | %d x %d cells "
-                    "| %ld | %.4f | %.4f (Gent-Lindley 1 + 2 S^2, S = 0.417, incompressible) | "
-                    "%+.2f %% |\n",
-                    r[0], r[1], n, e_app[1] / e_app[0], 1 + 2 * S * S,
-                    100 * (e_app[1] / e_app[0] / (1 + 2 * S * S) - 1));
+        std::printf(
+            "| frictionless cylinder 50 x 30 mm, strain %.3g: apparent modulus | %d x %d "
+            "cells | %ld | %.5g Pa | %.5g Pa (E, isotropic estimate) | %+.2f %% |\n",
+            strain, r[0], r[1], n, e_app[0], mo.E, 100 * (e_app[0] / mo.E - 1));
+        std::printf(
+            "| bonded / frictionless cylinder, same strain: modulus ratio | %d x %d cells "
+            "| %ld | %.4f | %.4f (Gent-Lindley 1 + 2 S^2, S = 0.417, incompressible) | "
+            "%+.2f %% |\n",
+            r[0], r[1], n, e_app[1] / e_app[0], 1 + 2 * S * S,
+            100 * (e_app[1] / e_app[0] / (1 + 2 * S * S) - 1));
       }
       // Flat punch on the block: Sneddon force and the Boussinesq surface profile.
       const double a = 0.005, d = 5e-5;
@@ -161,9 +164,10 @@ void register_validate(CLI::App& app, Runner* run) {
           std::fprintf(stderr, "%s: punch: %s\n", me, error.c_str());
           return 1;
         }
-        std::printf("| flat punch a = 5 mm, d = %.3g mm on the 60 x 60 x 30 mm block: force | %d "
-                    "x %d x %d cells | %ld | %.5g N | %.5g N (Sneddon, half-space) | %+.2f %% |\n",
-                    d * 1e3, c, c, c / 2, n, f, ref, 100 * (f / ref - 1));
+        std::printf(
+            "| flat punch a = 5 mm, d = %.3g mm on the 60 x 60 x 30 mm block: force | %d "
+            "x %d x %d cells | %ld | %.5g N | %.5g N (Sneddon, half-space) | %+.2f %% |\n",
+            d * 1e3, c, c, c / 2, n, f, ref, 100 * (f / ref - 1));
         // Profile along +x through the centre of the top face.
         const std::string csv = o->out_dir + "/boussinesq-" + std::to_string(c) + ".csv";
         std::ofstream out(csv);
@@ -181,9 +185,10 @@ void register_validate(CLI::App& app, Runner* run) {
             ++m;
           }
         }
-        std::printf("| Boussinesq surface profile w(r) / d, a < r <= 25 mm: RMS difference | %d x "
-                    "%d x %d cells | %ld | %.4f | 0 (w / d = (2 / pi) asin(a / r)) | (of d) |\n",
-                    c, c, c / 2, n, std::sqrt(rms / std::max(1, m)));
+        std::printf(
+            "| Boussinesq surface profile w(r) / d, a < r <= 25 mm: RMS difference | %d x "
+            "%d x %d cells | %ld | %.4f | 0 (w / d = (2 / pi) asin(a / r)) | (of d) |\n",
+            c, c, c / 2, n, std::sqrt(rms / std::max(1, m)));
       }
       return 0;
     };
