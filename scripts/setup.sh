@@ -10,6 +10,7 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config git clang-format
   libeigen3-dev libzmq3-dev cppzmq-dev protobuf-compiler libprotobuf-dev
   libspdlog-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libceres-dev
+  calculix-ccx  # conica-lab fem-reference: the continuum reference (docs/validation.md)
   python3-zmq python3-protobuf python3-matplotlib python3-numpy python3-websockets python3-meshio
   python3-venv python3-pip python3-setuptools python3-wheel python3-pytest
   # conica-ros (clients/ros): ROS 1 from Debian, rospy and rosmaster and the message packages

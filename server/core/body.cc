@@ -8,6 +8,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/boundary.h"
 #include "core/contact.h"
 #include "core/volume.h"
 
@@ -407,9 +408,11 @@ std::string build_model(const BodySpec& spec, Model* out) {
     int count = 0;
     if (f.axes < 1 || f.axes > 7)
       return "fixed selector " + std::to_string(k) + ": axes must be 1..7";
+    NodeMotion motion;
     auto fix = [&](int i) {
       ++count;
       m.fixed[i] |= static_cast<std::uint8_t>(f.axes);
+      if (!f.path_time.empty()) motion.nodes.push_back(i);
     };
     switch (f.kind) {
       case FixedSelector::Kind::kPlane: {
@@ -449,7 +452,14 @@ std::string build_model(const BodySpec& spec, Model* out) {
     }
     if (count == 0 && f.kind != FixedSelector::Kind::kNodes)
       return "fixed selector " + std::to_string(k) + " matches no node";
+    if (!f.path_time.empty()) {
+      if (std::string e = make_motion(f.path_time, f.path_displacement, f.axes, &motion);
+          !e.empty())
+        return "fixed selector " + std::to_string(k) + ": " + e;
+      m.motions.push_back(std::move(motion));
+    }
   }
+  if (std::string e = bond_plates(mesh.nodes, &m); !e.empty()) return e;
   m.inv_mass.resize(nn);
   m.free_axes.resize(nn);
   for (int i = 0; i < nn; ++i) {

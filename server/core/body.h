@@ -37,6 +37,10 @@ struct FixedSelector {
   std::string region;                                   // kRegion
   std::vector<int> nodes;                               // kNodes, 0-based
   int axes = 7;  // which axes are fixed: bit 0 x, 1 y, 2 z (7: all, a clamp)
+  // A prescribed path (empty: the nodes stay at rest): waypoints time (s, ascending) and
+  // displacement from rest (m) on the fixed axes (a NodeMotion of the model, core/boundary.h).
+  std::vector<double> path_time;
+  std::vector<Vec3> path_displacement;
 };
 
 struct BodySpec {

@@ -115,6 +115,23 @@ struct PlaneSpec {
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit, points into the free side
   double offset = 0;                                  // m
   double stiffness = 0;  // N/m per node penalty; 0: chosen from masses and dt
+  // A bonded plate (no slip): the nodes on its face at rest (|n.x - offset| <= bond_tolerance)
+  // are glued to it and move with it on all axes, x = rest + (offset_now - offset) n
+  // (core/boundary.h); the force on the plate then includes their reactions. Other nodes still
+  // meet its penalty.
+  bool bonded = false;
+  double bond_tolerance = 0;      // m; 0: 1e-6 of the body's size
+  std::vector<int> bonded_nodes;  // filled by build_model
+};
+
+// A node set moved along a prescribed path (core/boundary.h): on the selected axes its nodes sit
+// at rest + displacement(t), the displacement piecewise linear between waypoints (held at the
+// first before it and at the last after it).
+struct NodeMotion {
+  std::vector<int> nodes;
+  int axes = 7;                    // bit 0 x, 1 y, 2 z: the prescribed (and fixed) axes
+  std::vector<double> time;        // s, ascending
+  std::vector<Vec3> displacement;  // m, from rest, one per waypoint
 };
 
 struct Model {
@@ -160,6 +177,7 @@ struct Model {
 
   std::vector<ProbeSpec> probes;
   std::vector<PlaneSpec> planes;
+  std::vector<NodeMotion> motions;  // prescribed paths (core/boundary.h)
   SolverOptions options;
   Mapping mapping = Mapping::kStrain;
   double contact_modulus = 0;  // Pa, E* of the body (core/contact.h), set at build

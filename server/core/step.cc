@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/body.h"
+#include "core/boundary.h"
 #include "core/contact.h"
 #include "core/element_terms.h"
 #include "core/step_detail.h"
@@ -24,6 +25,7 @@ void evaluate_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian
     forces_active(m, s, ws);
     lap(s, ws, Stage::kSprings);
     contact_forces(m, s, ws, false, ws.bounds.far_every > 0 ? &s.region.awake_list : nullptr);
+    add_bonded_reactions(m, s, ws);
     lap(s, ws, Stage::kContact);
     return;
   }
@@ -35,6 +37,7 @@ void evaluate_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian
   element_forces(m, s, ws);
   lap(s, ws, Stage::kElements);
   contact_forces(m, s, ws, with_jacobian);
+  add_bonded_reactions(m, s, ws);
   lap(s, ws, Stage::kContact);
 }
 
@@ -138,6 +141,8 @@ void set_probe(State& state, int probe, const Vec3& center, bool active) {
 
 StepStatus step(const Model& m, State& s, Workspace& ws) {
   ws.lap_ns = now_ns();
+  // Prescribed boundaries at the end of this step (core/boundary.h).
+  if (has_boundary_motion(m)) apply_boundary_motion(m, s, s.time + m.options.dt);
   update_proxies(m, s, ws);
   lap(s, ws, Stage::kProxies);
   const bool multirate = choose_region(m, s, ws);

@@ -248,6 +248,17 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
         sel.axes |= 1 << (a - v1::X);
       }
     }
+    for (int w = 0; w < f.path_size(); ++w) {
+      const auto& p = f.path(w);
+      const std::string at = where + "path " + std::to_string(w) + ": ";
+      if (!std::isfinite(p.time())) return Error{at + "time must be finite (s)"};
+      if (w > 0 && !(p.time() > f.path(w - 1).time()))
+        return Error{at + "time must be greater than the previous waypoint's (s)"};
+      const Vec3 d = vec(p.displacement());
+      if (!d.allFinite()) return Error{at + "displacement must be finite (m)"};
+      sel.path_time.push_back(p.time());
+      sel.path_displacement.push_back(d);
+    }
     b.fixed.push_back(sel);
   }
   for (int k = 0; k < scene.probe_size(); ++k) {
@@ -307,6 +318,11 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     pl.normal.normalize();
     pl.offset = p.offset();
     pl.stiffness = p.stiffness();
+    pl.bonded = p.bonded();
+    pl.bond_tolerance = p.bond_tolerance();
+    if (!(pl.bond_tolerance >= 0) || !std::isfinite(pl.bond_tolerance))
+      return Error{loc.at("plate", k) + "plate " + std::to_string(k) +
+                   ": bond_tolerance must be >= 0 m"};
     b.planes.push_back(pl);
   }
   const auto& s = scene.solver();
@@ -370,6 +386,10 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     for (int k = 0; k < scene.fixed_size(); ++k)
       if (e.rfind("fixed selector " + std::to_string(k), 0) == 0)
         return Error{loc.at("fixed", k) + e};
+    for (int k = 0; k < scene.plate_size(); ++k)
+      if (e.rfind("plane " + std::to_string(k) + " ", 0) == 0 ||
+          e.rfind("plane " + std::to_string(k) + ":", 0) == 0)
+        return Error{loc.at("plate", k) + "plate " + e.substr(6)};
     return Error{name + ": " + e};
   }
   return out;

@@ -79,6 +79,11 @@ void set_fixed(const FixedSelector& f, v1::Fixed* out) {
   if (f.axes != 7)
     for (int a = 0; a < 3; ++a)
       if (f.axes & (1 << a)) out->add_axes(static_cast<v1::Axis>(v1::X + a));
+  for (size_t w = 0; w < f.path_time.size() && w < f.path_displacement.size(); ++w) {
+    v1::Waypoint* p = out->add_path();
+    p->set_time(f.path_time[w]);
+    set(f.path_displacement[w], p->mutable_displacement());
+  }
 }
 
 void set_probe(const ProbeSpec& p, v1::Probe* out) {
@@ -179,6 +184,8 @@ std::string scene_text(const SceneFile& s, const std::string& dir) {
     set(p.normal, plate->mutable_normal());
     plate->set_offset(p.offset);
     plate->set_stiffness(p.stiffness);
+    plate->set_bonded(p.bonded);
+    plate->set_bond_tolerance(p.bond_tolerance);
   }
   set_solver(b.options, scene.mutable_solver());
   return print(scene);

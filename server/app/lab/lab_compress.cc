@@ -3,6 +3,9 @@
 // body at a constant rate with the scene's own integrator and time step. Writes
 // displacement_mm,force_N (plate travel from first contact, force on the plate, compression
 // positive).
+//   --bonded: both plates bonded to the faces they touch (no slip); implies --quasi-static.
+//   --quasi-static: the plate moved in increments, the body at equilibrium after each one
+//   (lab/quasi_static.h), instead of at a rate with the scene's integrator.
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -11,6 +14,7 @@
 #include "core/step.h"
 #include "io/scene.h"
 #include "lab/compression.h"
+#include "lab/quasi_static.h"
 
 namespace conica::lab {
 
@@ -20,6 +24,8 @@ void register_compress(CLI::App& app, Runner* run) {
     double rate_mm_per_min = 500;
     double to_strain = 0.5;
     int samples = 50;
+    bool bonded = false, quasi_static = false;
+    double tolerance = 1e-4;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -33,6 +39,13 @@ void register_compress(CLI::App& app, Runner* run) {
   cmd->add_option("--out", o->out, "CSV displacement_mm,force_N ('-': stdout)")
       ->capture_default_str();
   cmd->add_option("--plot", o->plot, "also draw the curve to this PNG file");
+  cmd->add_flag("--bonded", o->bonded,
+                "bond both plates to the faces they touch (no slip); implies --quasi-static");
+  cmd->add_flag("--quasi-static", o->quasi_static,
+                "move the plate in --samples increments, each brought to equilibrium");
+  cmd->add_option("--tolerance", o->tolerance,
+                  "quasi-static: out-of-balance force over the reaction to converge")
+      ->capture_default_str();
   cmd->callback([o, run] {
     *run = [o]() -> int {
       if (!(o->rate_mm_per_min > 0) || !(o->to_strain > 0 && o->to_strain < 1) || o->samples < 1) {
@@ -48,14 +61,43 @@ void register_compress(CLI::App& app, Runner* run) {
       }
       if (ensure_top_plate(&spec))
         std::fprintf(stderr, "conica-lab compress: the scene has no plate: added one on top\n");
+      if (o->bonded) {
+        if (std::string e = bond_compression_plates(&spec); !e.empty()) {
+          std::fprintf(stderr, "conica-lab compress: %s: %s\n", o->scene.c_str(), e.c_str());
+          return 2;
+        }
+      }
       Model m;
       if (std::string e = build_model(spec, &m); !e.empty()) {
-        std::fprintf(stderr, "conica-lab compress: %s\n", e.c_str());
+        std::fprintf(stderr, "conica-lab compress: %s: %s\n", o->scene.c_str(), e.c_str());
         return 2;
       }
       CompressionStats st;
-      const Curve c =
-          compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples, &st);
+      Curve c;
+      if (o->bonded || o->quasi_static) {
+        // The plate as the rigid penalty compression_curve uses.
+        m.planes[0].stiffness = std::max(m.planes[0].stiffness, rigid_plate_stiffness(m, false));
+        QuasiStaticOptions qo;
+        qo.samples = o->samples;
+        qo.tolerance = o->tolerance;
+        QuasiStaticStats qs;
+        c = quasi_static_curve(m, plate_load(m), plate_reaction(), o->to_strain * plate_height(m),
+                               qo, &qs);
+        st.steps = qs.steps;
+        st.dt = qo.dt;
+        st.rollbacks = qs.rollbacks;
+        st.plate_stiffness = m.planes[0].stiffness;
+        std::fprintf(stderr,
+                     "conica-lab compress: quasi-static, %s plates, %d increments, %ld implicit "
+                     "steps; %s: worst out-of-balance %.2g of the reaction (tolerance %.2g), %d "
+                     "increment(s) unconverged, rollbacks %llu, hard stops %llu\n",
+                     o->bonded ? "bonded" : "frictionless", qs.increments, qs.steps,
+                     qs.unconverged == 0 ? "converged" : "NOT CONVERGED", qs.worst_residual,
+                     qo.tolerance, qs.unconverged, static_cast<unsigned long long>(qs.rollbacks),
+                     static_cast<unsigned long long>(qs.hard_stops));
+      } else {
+        c = compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples, &st);
+      }
       std::string csv = "displacement_mm,force_N\n";
       char line[96];
       for (const CurvePoint& p : c) {

@@ -34,6 +34,9 @@ int main(int argc, char** argv) {
   conica::lab::register_tradeoff(app, &run);
   conica::lab::register_plan(app, &run);
   conica::lab::register_contact(app, &run);
+  conica::lab::register_indent(app, &run);
+  conica::lab::register_fem_reference(app, &run);
+  conica::lab::register_validate(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

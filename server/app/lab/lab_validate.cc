@@ -1,0 +1,198 @@
+// conica-lab validate: standard small-strain cases on the shipped EF30 scenes
+// (configs/validation), each against a closed-form continuum result a reader can check, with
+// refinement studies. Prints a Markdown table (docs/validation.md) and writes the curves the
+// figure draws into --out-dir.
+//
+// The continuum moduli of a scene are its isotropic (Voigt) estimates: K = (C11 + 2 C12) / 3 +
+// kappa, G = (C11 - C12 + 3 C44) / 5 + mu (lab/calibration.h), E = 9 K G / (3 K + G),
+// nu = (3 K - 2 G) / (2 (3 K + G)), E* = E / (1 - nu^2).
+//  - uniaxial: frictionless compression of the cylinder, F / (A strain) = E.
+//  - Gent and Lindley (1959): a bonded incompressible cylinder of shape factor S = R / (2 h) has
+//    E_c = E (1 + 2 S^2): compared as the ratio of the bonded to the frictionless modulus of the
+//    same body, which does not depend on the estimate of E (compressibility lowers it).
+//  - Sneddon (1965) / Boussinesq: a rigid frictionless flat punch of radius a pressed d into a
+//    half-space: F = 2 a E* d, and the surface outside it sinks w(r) = (2 d / pi) asin(a / r).
+//    The block is 60 x 60 x 30 mm bonded to its base (h / a = 6), so the finite layer stiffens the
+//    punch a little over the half-space value.
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "app/lab/lab.h"
+#include "core/step.h"
+#include "io/scene.h"
+#include "lab/calibration.h"
+#include "lab/quasi_static.h"
+
+namespace conica::lab {
+
+namespace {
+
+struct Moduli {
+  double E = 0, nu = 0, K = 0, G = 0;
+};
+Moduli moduli(const BodySpec& spec) {
+  const LatticeModuli lm = lattice_moduli(spec.groups);
+  Moduli m;
+  m.K = (lm.c11 + 2 * lm.c12) / 3 + spec.bulk_modulus;
+  m.G = lattice_shear(lm) + spec.shear_modulus;
+  m.E = 9 * m.K * m.G / (3 * m.K + m.G);
+  m.nu = (3 * m.K - 2 * m.G) / (2 * (3 * m.K + m.G));
+  return m;
+}
+
+// Force (N) at plate travel `strain` x height, quasi-static, one increment.
+bool compress_force(BodySpec spec, bool bonded, double strain, double* force, double* area,
+                    long* nodes, std::string* error) {
+  ensure_top_plate(&spec);
+  if (bonded) {
+    if (std::string e = bond_compression_plates(&spec); !e.empty()) return *error = e, false;
+  }
+  Model m;
+  if (std::string e = build_model(spec, &m); !e.empty()) return *error = e, false;
+  m.planes[0].stiffness = std::max(m.planes[0].stiffness, rigid_plate_stiffness(m, false));
+  QuasiStaticOptions o;
+  o.samples = 1;
+  o.tolerance = 1e-6;
+  QuasiStaticStats st;
+  const Curve c =
+      quasi_static_curve(m, plate_load(m), plate_reaction(), strain * plate_height(m), o, &st);
+  if (st.unconverged) return *error = "compression did not converge", false;
+  *force = c.back().force;
+  *area = cross_section(m);
+  *nodes = m.num_nodes();
+  return true;
+}
+
+bool indent_force(BodySpec spec, double radius, double depth, double* force,
+                  std::vector<Vec3>* rest, std::vector<Vec3>* x, long* nodes, std::string* error) {
+  std::vector<int> punch;
+  if (std::string e = add_flat_punch(&spec, radius, false, true, &punch); !e.empty())
+    return *error = e, false;
+  Model m;
+  if (std::string e = build_model(spec, &m); !e.empty()) return *error = e, false;
+  QuasiStaticOptions o;
+  o.samples = 1;
+  o.tolerance = 1e-6;
+  QuasiStaticStats st;
+  const Curve c = quasi_static_curve(m, punch_load(punch), punch_reaction(punch), depth, o, &st);
+  if (st.unconverged) return *error = "indentation did not converge", false;
+  *force = c.back().force;
+  *rest = m.rest;
+  *x = st.positions;
+  *nodes = m.num_nodes();
+  return true;
+}
+
+}  // namespace
+
+void register_validate(CLI::App& app, Runner* run) {
+  struct Opts {
+    std::string configs = "configs/validation", out_dir = "validation-out";
+    bool quick = false;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* cmd = app.add_subcommand(
+      "validate", "Small-strain standard cases against closed-form continuum results");
+  cmd->add_option("--configs", o->configs, "folder of the validation scenes")
+      ->capture_default_str();
+  cmd->add_option("--out-dir", o->out_dir, "folder for the curves (CSV)")->capture_default_str();
+  cmd->add_flag("--quick", o->quick, "the served resolutions only (no refinement study)");
+  cmd->callback([o, run] {
+    *run = [o]() -> int {
+      const char* me = "conica-lab validate";
+      BodySpec cyl, block;
+      for (auto [name, spec] : {std::pair{"cylinder-ef30", &cyl}, {"punch-block-ef30", &block}})
+        if (std::string e = io::load_scene(o->configs + "/" + name + ".pbtxt", spec); !e.empty()) {
+          std::fprintf(stderr, "%s: %s\n", me, e.c_str());
+          return 2;
+        }
+      std::error_code ec;
+      std::filesystem::create_directories(o->out_dir, ec);
+      const Moduli mo = moduli(cyl);
+      std::printf(
+          "EF30 card, isotropic estimate: E %.5g Pa, Poisson %.4f, K %.5g Pa, G %.5g Pa\n\n", mo.E,
+          mo.nu, mo.K, mo.G);
+      std::printf("| case | resolution | nodes | conica | reference | difference |\n");
+      std::printf("|---|---|---|---|---|---|\n");
+      std::string error;
+      // Cylinders: uniaxial and bonded, at the served resolution and refined.
+      const double R = 0.025, H = 0.03, strain = 0.002, S = R / (2 * H);
+      std::vector<std::array<int, 2>> cyl_res = {{10, 6}};
+      if (!o->quick) cyl_res = {{10, 6}, {14, 8}, {20, 12}};
+      for (const auto& r : cyl_res) {
+        BodySpec s = cyl;
+        s.mesh = make_cylinder_lattice(R, H, r[0], r[1]);
+        double e_app[2] = {0, 0};
+        long n = 0;
+        for (int bonded = 0; bonded < 2; ++bonded) {
+          double f = 0, area = 0;
+          if (!compress_force(s, bonded, strain, &f, &area, &n, &error)) {
+            std::fprintf(stderr, "%s: cylinder: %s\n", me, error.c_str());
+            return 1;
+          }
+          e_app[bonded] = f / (area * strain);  // over the lattice's rest cross-section
+        }
+        std::printf(
+            "| frictionless cylinder 50 x 30 mm, strain %.3g: apparent modulus | %d x %d "
+            "cells | %ld | %.5g Pa | %.5g Pa (E, isotropic estimate) | %+.2f %% |\n",
+            strain, r[0], r[1], n, e_app[0], mo.E, 100 * (e_app[0] / mo.E - 1));
+        std::printf(
+            "| bonded / frictionless cylinder, same strain: modulus ratio | %d x %d cells "
+            "| %ld | %.4f | %.4f (Gent-Lindley 1 + 2 S^2, S = 0.417, incompressible) | "
+            "%+.2f %% |\n",
+            r[0], r[1], n, e_app[1] / e_app[0], 1 + 2 * S * S,
+            100 * (e_app[1] / e_app[0] / (1 + 2 * S * S) - 1));
+      }
+      // Flat punch on the block: Sneddon force and the Boussinesq surface profile.
+      const double a = 0.005, d = 5e-5;
+      const double Es = mo.E / (1 - mo.nu * mo.nu), ref = 2 * a * Es * d;
+      std::vector<int> across = {24};
+      if (!o->quick) across = {16, 24, 32};
+      for (int c : across) {
+        BodySpec s = block;
+        s.mesh = make_box_lattice(Vec3(0.06, 0.06, 0.03), {c, c, c / 2});
+        double f = 0;
+        long n = 0;
+        std::vector<Vec3> rest, x;
+        if (!indent_force(s, a, d, &f, &rest, &x, &n, &error)) {
+          std::fprintf(stderr, "%s: punch: %s\n", me, error.c_str());
+          return 1;
+        }
+        std::printf(
+            "| flat punch a = 5 mm, d = %.3g mm on the 60 x 60 x 30 mm block: force | %d "
+            "x %d x %d cells | %ld | %.5g N | %.5g N (Sneddon, half-space) | %+.2f %% |\n",
+            d * 1e3, c, c, c / 2, n, f, ref, 100 * (f / ref - 1));
+        // Profile along +x through the centre of the top face.
+        const std::string csv = o->out_dir + "/boussinesq-" + std::to_string(c) + ".csv";
+        std::ofstream out(csv);
+        out << "r_mm,w_over_d,boussinesq\n";
+        double rms = 0;
+        int m = 0;
+        for (size_t i = 0; i < rest.size(); ++i) {
+          const Vec3 p = rest[i] - Vec3(0.03, 0.03, 0.03);
+          if (std::abs(p.z()) > 1e-9 || std::abs(p.y()) > 1e-9 || p.x() < -1e-9) continue;
+          const double r = p.x(), w = (rest[i].z() - x[i].z()) / d;
+          const double b = r <= a + 1e-9 ? 1.0 : 2 / M_PI * std::asin(a / r);
+          out << r * 1e3 << "," << w << "," << b << "\n";
+          if (r > a + 1e-9 && r <= 0.025) {
+            rms += (w - b) * (w - b);
+            ++m;
+          }
+        }
+        std::printf(
+            "| Boussinesq surface profile w(r) / d, a < r <= 25 mm: RMS difference | %d x "
+            "%d x %d cells | %ld | %.4f | 0 (w / d = (2 / pi) asin(a / r)) | (of d) |\n",
+            c, c, c / 2, n, std::sqrt(rms / std::max(1, m)));
+      }
+      return 0;
+    };
+  });
+}
+
+}  // namespace conica::lab

@@ -1,0 +1,202 @@
+#include "lab/quasi_static.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/step.h"
+
+namespace conica::lab {
+
+namespace {
+double out_of_balance(const Model& m, const Workspace& ws) {
+  double r2 = 0;
+  for (int i = 0; i < m.num_nodes(); ++i)
+    r2 += ws.force[i].cwiseProduct(m.free_axes[i]).squaredNorm();
+  return std::sqrt(r2);
+}
+}  // namespace
+
+Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionFn& reaction,
+                         double travel, const QuasiStaticOptions& o, QuasiStaticStats* stats) {
+  Model m = model;
+  SolverOptions& so = m.options;
+  so.integrator = Integrator::kImplicitEuler;
+  so.dt = o.dt;
+  so.substeps = 1;
+  so.newton_iterations = o.newton_iterations;
+  so.cg_iterations = o.cg_iterations;
+  so.cg_tolerance = 1e-10;
+  so.mass_damping = 0;
+  so.gravity.setZero();
+  so.max_speed = std::numeric_limits<double>::infinity();
+  so.active_region = false;
+  State s = make_state(m);
+  Workspace ws(m);
+  QuasiStaticStats st;
+  Curve out(o.samples + 1);
+  std::vector<Vec3> prev = s.x, delta(m.num_nodes(), Vec3::Zero());
+  for (int j = 1; j <= o.samples; ++j) {
+    const double u = travel * j / o.samples;
+    // Predictor: the last increment's displacement again.
+    for (int i = 0; i < m.num_nodes(); ++i) s.x[i] += delta[i].cwiseProduct(m.free_axes[i]);
+    load(m, s, u);
+    double rel = std::numeric_limits<double>::infinity(), f = 0;
+    int it = 0;
+    for (; it < o.max_iterations; ++it) {
+      std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
+      s.time = 0;
+      step(m, s, ws);
+      ++st.steps;
+      std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
+      compute_forces(m, s, ws);
+      f = reaction(m, s, ws);
+      rel = out_of_balance(m, ws) / std::max(std::abs(f), 1e-30);
+      if (rel < o.tolerance) break;
+    }
+    if (!(rel < o.tolerance)) ++st.unconverged;
+    st.worst_residual = std::max(st.worst_residual, rel);
+    out[j].displacement = u;
+    out[j].force = f;
+    for (int i = 0; i < m.num_nodes(); ++i) {
+      delta[i] = s.x[i] - prev[i];
+      prev[i] = s.x[i];
+    }
+  }
+  st.increments = o.samples;
+  st.rollbacks = s.counters.rollbacks;
+  st.hard_stops = s.counters.hard_stops;
+  st.positions = s.x;
+  if (stats) *stats = std::move(st);
+  return out;
+}
+
+std::string bond_compression_plates(BodySpec* spec) {
+  ensure_top_plate(spec);
+  PlaneSpec& p = spec->planes.at(0);
+  if (!(p.normal.norm() > 0)) return "plate 0: normal must be nonzero";
+  const Vec3 n = p.normal.normalized();
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  Vec3 bmin = Vec3::Constant(lo), bmax = -bmin;
+  for (const Vec3& x : spec->mesh.nodes) {
+    lo = std::min(lo, n.dot(x));
+    hi = std::max(hi, n.dot(x));
+    bmin = bmin.cwiseMin(x);
+    bmax = bmax.cwiseMax(x);
+  }
+  if (spec->mesh.nodes.empty()) return "the body has no nodes";
+  const double tol = 1e-6 * (bmax - bmin).norm();
+  p.normal = n;
+  p.offset = lo;  // on the face it bonds
+  p.bonded = true;
+  p.bond_tolerance = tol;
+  FixedSelector base;
+  base.kind = FixedSelector::Kind::kPlane;
+  base.normal = n;
+  base.offset = hi;
+  base.tolerance = tol;
+  base.axes = 7;
+  spec->fixed.push_back(base);
+  return {};
+}
+
+LoadFn plate_load(const Model& model) {
+  const double start = model.planes.at(0).offset;
+  return [start](const Model&, State& s, double u) { s.planes[0].offset = start + u; };
+}
+
+ReactionFn plate_reaction() {
+  return [](const Model& m, const State& s, const Workspace&) {
+    return -m.planes[0].normal.dot(s.planes[0].force);
+  };
+}
+
+std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, bool base_bonded,
+                           std::vector<int>* punch) {
+  const auto& nodes = spec->mesh.nodes;
+  if (nodes.empty()) return "the body has no nodes";
+  if (!(radius > 0) || !std::isfinite(radius)) return "punch radius must be > 0 m";
+  Vec3 lo = nodes[0], hi = lo;
+  for (const Vec3& x : nodes) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  const double tol = 1e-6 * (hi - lo).norm();
+  // The top face's bounding box centre in x, y.
+  Vec3 tlo = Vec3::Constant(std::numeric_limits<double>::infinity()), thi = -tlo;
+  for (const Vec3& x : nodes)
+    if (x.z() >= hi.z() - tol) {
+      tlo = tlo.cwiseMin(x);
+      thi = thi.cwiseMax(x);
+    }
+  const Vec3 c = 0.5 * (tlo + thi);
+  punch->clear();
+  for (int i = 0; i < static_cast<int>(nodes.size()); ++i) {
+    const Vec3& x = nodes[i];
+    if (x.z() >= hi.z() - tol && std::hypot(x.x() - c.x(), x.y() - c.y()) <= radius + tol)
+      punch->push_back(i);
+  }
+  if (punch->empty()) return "no node of the top face lies under the punch (radius too small)";
+  FixedSelector p;
+  p.kind = FixedSelector::Kind::kNodes;
+  p.nodes = *punch;
+  p.axes = punch_bonded ? 7 : 4;
+  spec->fixed.push_back(p);
+  FixedSelector base;
+  base.kind = FixedSelector::Kind::kPlane;
+  base.normal = Vec3::UnitZ();
+  base.offset = lo.z();
+  base.tolerance = tol;
+  base.axes = base_bonded ? 7 : 4;
+  spec->fixed.push_back(base);
+  if (!base_bonded) {
+    // Against rigid motion in the base plane: the base node nearest the centre held in x and y,
+    // the one nearest a point beside it in y.
+    const Vec3 bc(c.x(), c.y(), lo.z());
+    const Vec3 side = bc + Vec3(0.25 * (hi.x() - lo.x()), 0, 0);
+    int a = -1, b = -1;
+    double da = std::numeric_limits<double>::infinity(), db = da;
+    for (int i = 0; i < static_cast<int>(nodes.size()); ++i) {
+      if (nodes[i].z() > lo.z() + tol) continue;
+      if ((nodes[i] - bc).norm() < da) {
+        da = (nodes[i] - bc).norm();
+        a = i;
+      }
+      if ((nodes[i] - side).norm() < db) {
+        db = (nodes[i] - side).norm();
+        b = i;
+      }
+    }
+    FixedSelector pa, pb;
+    pa.kind = pb.kind = FixedSelector::Kind::kNodes;
+    pa.nodes = {a};
+    pa.axes = 3;
+    pb.nodes = {b};
+    pb.axes = 2;
+    spec->fixed.push_back(pa);
+    if (b != a) spec->fixed.push_back(pb);
+  }
+  return {};
+}
+
+LoadFn punch_load(const std::vector<int>& punch) {
+  return [punch](const Model& m, State& s, double u) {
+    for (int i : punch) {
+      s.x[i].z() = m.rest[i].z() - u;
+      if (m.fixed[i] == 7) {
+        s.x[i].x() = m.rest[i].x();
+        s.x[i].y() = m.rest[i].y();
+      }
+    }
+  };
+}
+
+ReactionFn punch_reaction(const std::vector<int>& punch) {
+  return [punch](const Model&, const State&, const Workspace& ws) {
+    double f = 0;
+    for (int i : punch) f += ws.force[i].z();
+    return f;
+  };
+}
+
+}  // namespace conica::lab

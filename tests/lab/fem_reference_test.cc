@@ -1,0 +1,135 @@
+// The CalculiX reference (lab/fem_reference.h): the quadratic mesh, the Yeoh fit, and a deck that
+// ccx solves: homogeneous frictionless compression of a block, whose force is the law's own
+// uniaxial stress times the area (an analytic value). The ccx case is skipped, saying so, when
+// ccx is not installed (Debian calculix-ccx, in scripts/setup.sh).
+#include "lab/fem_reference.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/body.h"
+
+namespace conica::lab {
+namespace {
+
+TEST(FemReferenceTest, QuadraticMeshSharesNodesAndEdges) {
+  const Mesh box = make_box_lattice(Vec3(0.02, 0.02, 0.02), {2, 2, 2});
+  const FemMesh a = make_c3d20_mesh(box, 1, false);
+  EXPECT_FALSE(a.quarter);
+  EXPECT_EQ(a.elements.size(), 8u);
+  // Corners (n + 1)^3 and one midside node per lattice edge, 3 n (n + 1)^2.
+  EXPECT_EQ(a.nodes.size(), 27u + 54u);
+  const FemMesh b = make_c3d20_mesh(make_box_lattice(Vec3(0.02, 0.02, 0.02), {1, 1, 1}), 2, false);
+  EXPECT_EQ(b.elements.size(), 8u);
+  EXPECT_EQ(b.nodes.size(), 81u);
+  for (const auto& e : a.elements) {
+    // Midside node 9 (index 8) halfway along edge 1-2, node 17 (16) along 1-5.
+    EXPECT_NEAR((a.nodes[e[8]] - 0.5 * (a.nodes[e[0]] + a.nodes[e[1]])).norm(), 0, 1e-15);
+    EXPECT_NEAR((a.nodes[e[16]] - 0.5 * (a.nodes[e[0]] + a.nodes[e[4]])).norm(), 0, 1e-15);
+    // Positive orientation: node 2 along +x, 4 along +y, 5 along +z from node 1.
+    const Vec3 dx = a.nodes[e[1]] - a.nodes[e[0]], dy = a.nodes[e[3]] - a.nodes[e[0]],
+               dz = a.nodes[e[4]] - a.nodes[e[0]];
+    EXPECT_GT(dx.cross(dy).dot(dz), 0);
+  }
+  const FemMesh q = make_c3d20_mesh(box, 1, true);
+  EXPECT_TRUE(q.quarter);
+  EXPECT_EQ(q.elements.size(), 2u);  // one column of the two layers
+  // A 3 x 3 lattice has an element across the centre planes: no quarter.
+  EXPECT_FALSE(
+      make_c3d20_mesh(make_box_lattice(Vec3(0.03, 0.03, 0.01), {3, 3, 1}), 1, true).quarter);
+}
+
+TEST(FemReferenceTest, YeohFitRecoversItsLawAndTheSmallStrainModulus) {
+  YeohLaw law{12000, -800, 900, 0};
+  std::vector<double> e, p;
+  for (int k = 1; k <= 40; ++k) {
+    e.push_back(0.5 * k / 40);
+    p.push_back(yeoh_uniaxial_stress(law, e.back()));
+  }
+  YeohLaw fit;
+  ASSERT_EQ(fit_yeoh(e, p, 0.45, 0.03, &fit), "");
+  EXPECT_NEAR(fit.c10 / law.c10, 1, 1e-9);
+  EXPECT_NEAR(fit.c20 / law.c20, 1, 1e-7);
+  EXPECT_NEAR(fit.c30 / law.c30, 1, 1e-7);
+  // Small strain: E = 3 mu = 6 C10 (incompressible); K = 2 mu (1 + nu) / (3 (1 - 2 nu)).
+  EXPECT_NEAR(yeoh_uniaxial_stress(law, 1e-6) / 1e-6 / (6 * law.c10), 1, 1e-5);
+  const double mu = 2 * law.c10, k = 2 * mu * 1.45 / (3 * 0.1);
+  EXPECT_NEAR(fit.d1 * k / 2, 1, 1e-9);
+  EXPECT_NE(fit_yeoh({0.1, 0.2}, {1, 2}, 0.45, 0.03, &fit), "");
+  // A softening curve has no stable fit.
+  EXPECT_NE(fit_yeoh({0.1, 0.2, 0.3, 0.4}, {4, 3, 2, 1}, 0.45, 0.03, &fit), "");
+}
+
+TEST(FemReferenceTest, ReadsTheDriveSetTotals) {
+  const std::string dat =
+      "\n total force (fx,fy,fz) for set NDRIVE and time  0.5000000E+00\n\n"
+      "        1.0E-03  2.0E-03 -3.000000E+00\n\n"
+      " total force (fx,fy,fz) for set NDRIVE and time  0.1000000E+01\n\n"
+      "        1.0E-03  2.0E-03 -7.000000E+00\n";
+  FemCase c;
+  c.travel = 0.004;
+  std::vector<FemPoint> curve;
+  ASSERT_EQ(read_calculix_totals(dat, c, true, &curve), "");
+  ASSERT_EQ(curve.size(), 3u);
+  EXPECT_NEAR(curve[1].displacement, 0.002, 1e-15);
+  EXPECT_NEAR(curve[1].force, 12, 1e-12);
+  EXPECT_NEAR(curve[2].force, 28, 1e-12);
+  EXPECT_NE(read_calculix_totals("no totals", c, false, &curve), "");
+}
+
+// ccx on a 2 x 2 x 1 block (frictionless plates: base held in z, the centre pinned), 30 % strain.
+// A homogeneous state: the force is the uniaxial nominal stress times the rest area, for every
+// increment, to the law's compressibility (Poisson 0.4999).
+TEST(FemReferenceTest, CalculixCompressesABlockAsTheLawSays) {
+  if (std::system("command -v ccx >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "ccx (Debian calculix-ccx) is not installed: the CalculiX case is skipped";
+  const double side = 0.02, height = 0.01;
+  const YeohLaw law0{10000, -500, 800, 0};
+  std::vector<double> e, p;
+  for (int k = 1; k <= 30; ++k) {
+    e.push_back(0.5 * k / 30);
+    p.push_back(yeoh_uniaxial_stress(law0, e.back()));
+  }
+  YeohLaw law;
+  ASSERT_EQ(fit_yeoh(e, p, 0.4999, 0.03, &law), "");
+  for (bool quarter : {true, false}) {
+    const FemMesh mesh =
+        make_c3d20_mesh(make_box_lattice(Vec3(side, side, height), {2, 2, 1}), 1, quarter);
+    ASSERT_EQ(mesh.quarter, quarter);
+    FemCase c;
+    c.test = FemCase::Test::kCompress;
+    c.travel = 0.3 * height;
+    c.increments = 6;
+    std::string deck;
+    ASSERT_EQ(write_calculix_deck(mesh, law, c, "test", &deck), "");
+    const auto dir = std::filesystem::temp_directory_path() /
+                     ("conica-fem-test-" + std::to_string(::getpid()) + (quarter ? "q" : "f"));
+    std::filesystem::create_directories(dir);
+    std::ofstream(dir / "job.inp") << deck;
+    const std::string cmd = "cd '" + dir.string() + "' && ccx -i job > job.log 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << "ccx failed, see " << dir;
+    std::ifstream in(dir / "job.dat");
+    std::stringstream dat;
+    dat << in.rdbuf();
+    std::vector<FemPoint> curve;
+    ASSERT_EQ(read_calculix_totals(dat.str(), c, mesh.quarter, &curve), "");
+    ASSERT_GE(curve.size(), 7u);
+    EXPECT_NEAR(curve.back().displacement, c.travel, 1e-12);
+    for (size_t k = 1; k < curve.size(); ++k) {
+      const double strain = curve[k].displacement / height;
+      const double ref = yeoh_uniaxial_stress(law, strain) * side * side;
+      EXPECT_NEAR(curve[k].force / ref, 1, 2e-3) << "strain " << strain << " quarter " << quarter;
+    }
+    std::filesystem::remove_all(dir);
+  }
+}
+
+}  // namespace
+}  // namespace conica::lab

@@ -1,0 +1,164 @@
+// Quasi-static loading (lab/quasi_static.h) with bonded plates and a flat punch, against the
+// static equilibrium of the same body solved directly: the stiffness by central finite
+// differences of the force pass, the free nodes' equations solved densely.
+#include "lab/quasi_static.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+
+#include "core/step.h"
+
+namespace conica::lab {
+namespace {
+
+BodySpec Block(int nx, int nz, double side, double height) {
+  BodySpec s;
+  s.mesh = make_box_lattice(Vec3(side, side, height), {nx, nx, nz});
+  s.density = 1000;
+  SpringCard c;
+  c.law = LawKind::kHooke;
+  c.hooke_k = 50;  // N/m
+  c.hooke_length = 0.01;
+  s.groups.push_back({"all", c, kAllFamilies, {}, Vec3::Zero(), 10});
+  s.shear_modulus = 2000;  // Pa
+  s.bulk_modulus = 20000;  // Pa
+  return s;
+}
+
+// The reaction (N) of the linearised body with the driven nodes `driven` moved by `u` (m) on
+// their fixed axes and every other fixed axis held: J_ff x_f = -J_fp u_p, reaction = the sum
+// over the driven nodes of the z force.
+double LinearReaction(const Model& m, const std::vector<int>& driven, const Vec3& u) {
+  const int n = 3 * m.num_nodes();
+  State s = make_state(m);
+  for (auto& p : s.planes) p.offset = -1e9;  // plates out of the way: bonded nodes only
+  Workspace ws(m);
+  Eigen::MatrixXd J(n, n);
+  const double h = 1e-7;
+  for (int j = 0; j < n; ++j) {
+    Eigen::VectorXd fp(n), fm(n);
+    s.x = m.rest;
+    s.x[j / 3][j % 3] += h;
+    compute_forces(m, s, ws);
+    for (int i = 0; i < m.num_nodes(); ++i) fp.segment<3>(3 * i) = ws.force[i];
+    s.x[j / 3][j % 3] -= 2 * h;
+    compute_forces(m, s, ws);
+    for (int i = 0; i < m.num_nodes(); ++i) fm.segment<3>(3 * i) = ws.force[i];
+    J.col(j) = (fp - fm) / (2 * h);
+  }
+  Eigen::VectorXd up = Eigen::VectorXd::Zero(n);
+  std::vector<int> is_driven(m.num_nodes(), 0);
+  for (int i : driven) is_driven[i] = 1;
+  for (int i : driven)
+    for (int a = 0; a < 3; ++a)
+      if (m.free_axes[i][a] == 0) up(3 * i + a) = u[a];
+  std::vector<int> free;
+  for (int j = 0; j < n; ++j)
+    if (m.free_axes[j / 3][j % 3] != 0) free.push_back(j);
+  Eigen::MatrixXd Jff(free.size(), free.size());
+  Eigen::VectorXd rhs(free.size());
+  const Eigen::VectorXd Jup = J * up;
+  for (size_t a = 0; a < free.size(); ++a) {
+    rhs(a) = -Jup(free[a]);
+    for (size_t b = 0; b < free.size(); ++b) Jff(a, b) = J(free[a], free[b]);
+  }
+  const Eigen::VectorXd xf = Jff.fullPivLu().solve(rhs);
+  Eigen::VectorXd x = up;
+  for (size_t a = 0; a < free.size(); ++a) x(free[a]) = xf(a);
+  const Eigen::VectorXd f = J * x;
+  double r = 0;
+  for (int i : driven) r += f(3 * i + 2);
+  return r;
+}
+
+TEST(QuasiStaticTest, BondedCompressionMatchesTheLinearEquilibrium) {
+  BodySpec spec = Block(2, 2, 0.02, 0.02);
+  ASSERT_EQ(bond_compression_plates(&spec), "");
+  Model m;
+  ASSERT_EQ(build_model(spec, &m), "");
+  ASSERT_EQ(m.planes[0].bonded_nodes.size(), 9u);
+  const double travel = 1e-6;  // m: 5e-5 strain, linear
+  QuasiStaticOptions o;
+  o.samples = 2;
+  o.tolerance = 1e-9;
+  QuasiStaticStats st;
+  const Curve c = quasi_static_curve(m, plate_load(m), plate_reaction(), travel, o, &st);
+  EXPECT_EQ(st.unconverged, 0);
+  EXPECT_LT(st.worst_residual, 1e-9);
+  const double ref = LinearReaction(m, m.planes[0].bonded_nodes, Vec3(0, 0, -travel));
+  ASSERT_GT(ref, 0);
+  EXPECT_NEAR(c.back().force / ref, 1, 1e-4) << c.back().force << " vs " << ref;
+  EXPECT_NEAR(c[1].force / c.back().force, 0.5, 1e-4);  // linear
+}
+
+TEST(QuasiStaticTest, BondedIsStifferThanFrictionless) {
+  // The same block and travel: bonding the plates adds the lateral constraint (shape factor).
+  double force[2];
+  for (int bonded = 0; bonded < 2; ++bonded) {
+    BodySpec spec = Block(3, 2, 0.03, 0.02);
+    if (bonded) {
+      ASSERT_EQ(bond_compression_plates(&spec), "");
+    } else {
+      std::vector<int> unused;
+      ensure_top_plate(&spec);
+      FixedSelector base;
+      base.kind = FixedSelector::Kind::kPlane;
+      base.offset = 0;
+      base.axes = 4;
+      FixedSelector pin;
+      pin.kind = FixedSelector::Kind::kNodes;
+      pin.nodes = {0};
+      pin.axes = 3;
+      FixedSelector pin2 = pin;
+      pin2.nodes = {3};
+      pin2.axes = 2;
+      spec.fixed = {base, pin, pin2};
+    }
+    Model m;
+    ASSERT_EQ(build_model(spec, &m), "");
+    m.planes[0].stiffness = rigid_plate_stiffness(m, false);
+    QuasiStaticOptions o;
+    o.samples = 2;
+    QuasiStaticStats st;
+    force[bonded] =
+        quasi_static_curve(m, plate_load(m), plate_reaction(), 2e-4, o, &st).back().force;
+    EXPECT_EQ(st.unconverged, 0);
+  }
+  EXPECT_GT(force[1], 1.05 * force[0]);
+}
+
+TEST(QuasiStaticTest, FlatPunchMatchesTheLinearEquilibrium) {
+  for (bool punch_bonded : {false, true}) {
+    BodySpec spec = Block(4, 2, 0.04, 0.02);
+    std::vector<int> punch;
+    ASSERT_EQ(add_flat_punch(&spec, 0.0101, punch_bonded, true, &punch), "");
+    ASSERT_EQ(punch.size(), 5u);  // the centre and its four neighbours at 10 mm
+    Model m;
+    ASSERT_EQ(build_model(spec, &m), "");
+    const double depth = 1e-6;
+    QuasiStaticOptions o;
+    o.samples = 1;
+    o.tolerance = 1e-9;
+    QuasiStaticStats st;
+    const Curve c = quasi_static_curve(m, punch_load(punch), punch_reaction(punch), depth, o, &st);
+    EXPECT_EQ(st.unconverged, 0);
+    const double ref = LinearReaction(m, punch, Vec3(0, 0, -depth));
+    ASSERT_GT(ref, 0);
+    EXPECT_NEAR(c.back().force / ref, 1, 1e-4) << punch_bonded;
+  }
+}
+
+TEST(QuasiStaticTest, PunchNeedsANodeUnderIt) {
+  BodySpec spec = Block(1, 1, 0.02, 0.01);  // top nodes at the corners only, 14 mm from the axis
+  std::vector<int> punch;
+  EXPECT_EQ(add_flat_punch(&spec, 1e-3, false, true, &punch).find("no node"), 0u);
+  // The top face's centre node is under any punch of at least a hair's radius.
+  BodySpec spec2 = Block(2, 1, 0.02, 0.01);
+  EXPECT_EQ(add_flat_punch(&spec2, 1e-3, false, true, &punch), "");
+  EXPECT_EQ(punch.size(), 1u);
+}
+
+}  // namespace
+}  // namespace conica::lab
