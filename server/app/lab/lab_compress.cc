@@ -20,6 +20,8 @@ void register_compress(CLI::App& app, Runner* run) {
     double rate_mm_per_min = 500;
     double to_strain = 0.5;
     int samples = 50;
+    bool quasi_static = false;
+    double tolerance = 1e-5;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -33,6 +35,12 @@ void register_compress(CLI::App& app, Runner* run) {
   cmd->add_option("--out", o->out, "CSV displacement_mm,force_N ('-': stdout)")
       ->capture_default_str();
   cmd->add_option("--plot", o->plot, "also draw the curve to this PNG file");
+  cmd->add_flag("--static", o->quasi_static,
+                "static equilibrium at each sample (continuation in strain, no rate terms) "
+                "instead of moving the plate at --rate-mm-per-min");
+  cmd->add_option("--static-tolerance", o->tolerance,
+                  "--static: relative change of the plate force that ends a solve")
+      ->capture_default_str();
   cmd->callback([o, run] {
     *run = [o]() -> int {
       if (!(o->rate_mm_per_min > 0) || !(o->to_strain > 0 && o->to_strain < 1) || o->samples < 1) {
@@ -55,7 +63,10 @@ void register_compress(CLI::App& app, Runner* run) {
       }
       CompressionStats st;
       const Curve c =
-          compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples, &st);
+          o->quasi_static
+              ? static_compression_curve(m, o->to_strain, o->samples, &st, o->tolerance)
+              : compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples,
+                                  &st);
       std::string csv = "displacement_mm,force_N\n";
       char line[96];
       for (const CurvePoint& p : c) {
@@ -72,11 +83,12 @@ void register_compress(CLI::App& app, Runner* run) {
       std::fprintf(stderr,
                    "conica-lab compress: %s, height %.4g mm, %ld %s steps of %.4g ms, plate "
                    "penalty %.4g N/m, max penetration %.3g mm, rollbacks %llu, force at %.4g mm: "
-                   "%.6g N, step time %.4g us\n",
+                   "%.6g N, step time %.4g us, layer spread %.3g %% of the half width\n",
                    o->scene.c_str(), plate_height(m) * 1e3, st.steps,
-                   integrator_name(m.options.integrator), st.dt * 1e3, st.plate_stiffness,
+                   o->quasi_static ? "static (implicit)" : integrator_name(m.options.integrator), st.dt * 1e3, st.plate_stiffness,
                    st.max_penetration * 1e3, static_cast<unsigned long long>(st.rollbacks),
-                   c.back().displacement * 1e3, c.back().force, st.step_seconds * 1e6);
+                   c.back().displacement * 1e3, c.back().force, st.step_seconds * 1e6,
+                   st.half_width > 0 ? 100 * st.layer_spread / st.half_width : 0.0);
       if (!o->plot.empty()) {
         std::string data = o->out;
         if (data == "-") {
