@@ -24,6 +24,7 @@ void register_viscoelastic(CLI::App& app, Runner* run);
 void register_tradeoff(CLI::App& app, Runner* run);
 void register_plan(CLI::App& app, Runner* run);
 void register_contact(CLI::App& app, Runner* run);
+void register_library(CLI::App& app, Runner* run);
 
 struct TradeoffRow;
 // The speed/accuracy sweep of conica-lab tradeoff (quick: the small one). Scenes are found from

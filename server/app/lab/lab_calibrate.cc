@@ -30,7 +30,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
     FitOptions fit;  // the options that map one to one, with the library's defaults
     double rate_mm_per_min = 500;
     bool free_moduli = false, no_precompression = false;
-    std::string method = "static";
+    std::string method = "grid";
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(

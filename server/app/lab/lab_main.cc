@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   conica::lab::register_tradeoff(app, &run);
   conica::lab::register_plan(app, &run);
   conica::lab::register_contact(app, &run);
+  conica::lab::register_library(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
