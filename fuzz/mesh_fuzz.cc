@@ -1,7 +1,8 @@
 // Mesh readers on arbitrary bytes: the format is chosen by the first line (Gmsh v1, 2.2, 4.1,
 // legacy VTK, each ASCII or binary), so one target reaches every reader. Seeds: fuzz/corpus/mesh,
-// the binary ones written by meshio (fuzz/CMakeLists.txt says how). A mesh that parses is then repaired, as a
-// scene with a mesh does; element indices must be in range whenever parsing succeeds.
+// the binary ones written by meshio (fuzz/CMakeLists.txt says how). A mesh that parses is then
+// repaired, as a scene with a mesh does; element indices must be in range whenever parsing
+// succeeds.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>

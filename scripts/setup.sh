@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PACKAGES=(
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config git clang-format
   libeigen3-dev libzmq3-dev cppzmq-dev protobuf-compiler libprotobuf-dev
   libspdlog-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libceres-dev
   python3-zmq python3-protobuf python3-matplotlib python3-numpy python3-websockets python3-meshio

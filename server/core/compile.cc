@@ -1,6 +1,6 @@
-// Compile step: everything a Workspace derives from a Model (spring layout in runs and chunks,
-// hard-stop lengths, the active region's network modulus and the far field's stability bounds)
-// and the per-stage scratch, sized once.
+// Compile step: everything a Workspace derives from a Model (the spring layout in runs and
+// chunks, hard-stop lengths, the active region's network modulus and the far field's stability
+// bounds) and each stage's scratch, sized once.
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <bit>
@@ -18,35 +18,18 @@ namespace conica {
 
 using namespace detail;
 
-Workspace::Workspace(const Model& m) {
+namespace {
+
+// Springs in runs and chunks, hard-stop lengths and the per-node spring lists.
+SpringLayout compile_layout(const Model& m) {
+  SpringLayout L;
   const size_t ns = m.num_springs(), nn = m.num_nodes();
-  deflection.assign(ns, 0);
-  load.assign(ns, 0);
-  tangent.assign(ns, 0);
-  length.assign(ns, 0);
-  ux.assign(ns, 1.0);
-  uy.assign(ns, 0);
-  uz.assign(ns, 0);
-  for (size_t k = 0; k < ns; ++k) {  // directions at rest until the first force evaluation
-    const Vec3 u = m.rest[m.spring_j[k]] - m.rest[m.spring_i[k]];
-    if (u.norm() > 0) {
-      ux[k] = u.x() / u.norm();
-      uy[k] = u.y() / u.norm();
-      uz[k] = u.z() / u.norm();
-    }
-  }
-  min_length.assign(ns, 0);
-  min_length2.assign(ns, 0);
-  alpha.assign(ns, 0);
-  beta.assign(ns, 0);
-  force.assign(nn, Vec3::Zero());
-  for (auto* v : {&px, &py, &pz, &fx, &fy, &fz}) v->assign(nn, 0.0);
-  for (auto* v : {&chunk_ux, &chunk_uy, &chunk_uz, &chunk_length, &chunk_deflection, &chunk_load,
-                  &chunk_tangent})
-    v->assign(kChunkSprings, 0.0);
   // Runs, cut at group boundaries and into pieces of at most kChunk springs; chunks of whole
   // pieces of one group, about kChunk springs each.
-  constexpr int kChunk = kChunkSprings;
+  constexpr int kChunk = SpringLayout::kChunkSprings;
+  auto& runs = L.runs;
+  auto& chunks = L.chunks;
+  using Chunk = SpringLayout::Chunk;
   for (int g = 0; g < static_cast<int>(m.groups.size()); ++g) {
     const int end = m.groups[g].end;
     Chunk chunk{g, static_cast<int>(runs.size()), 0, m.groups[g].begin, 0};
@@ -73,36 +56,51 @@ Workspace::Workspace(const Model& m) {
     runs.clear();
     chunks.clear();
   }
-  contact_n.assign(nn, Vec3::Zero());
-  contact_block.assign(nn, Mat3::Zero());
-  contact_nodes.assign(nn, 0);
-  in_contact.assign(nn, 0);
-  probe_candidates.resize(m.probes.size());
-  for (auto& c : probe_candidates) c.reserve(m.surface.size());
-  for (auto* v : {&x0, &v0, &good_x, &good_v}) v->assign(nn, Vec3::Zero());
-  sys_mass.assign(nn, 0.0);
-  sys_free.assign(3 * nn, 0.0);
-  for (size_t i = 0; i < nn; ++i)
-    for (int c = 0; c < 3; ++c) sys_free[c * nn + i] = m.free_axes[i][c];
-  for (auto* v : {&sys_diag, &sys_pre}) v->assign(6 * nn, 0.0);
-  for (auto* v : {&sys_rhs, &sys_r, &sys_z, &sys_p, &sys_ap, &sys_dx}) v->assign(3 * nn, 0.0);
-  sys_chunk.assign(6 * kChunkSprings, 0.0);
-  good_maxwell.assign(ns, 0);
-  if (m.shear_modulus > 0) {
-    shear_coef.assign(m.shear_v0.size(), 0.0);
-    element_lap.assign(16 * m.tetrahedra.size() + 64 * m.hexahedra.size(), 0.0);
+  L.spring_group.assign(ns, 0);
+  for (size_t g = 0; g < m.groups.size(); ++g)
+    for (int k = m.groups[g].begin; k < m.groups[g].end; ++k)
+      L.spring_group[k] = static_cast<int>(g);
+  for (const SpringGroup& g : m.groups) {
+    L.tangent_limit.push_back(1.5 * (g.law ? g.law->rest_stiffness() : g.card.hooke_k) +
+                              g.card.maxwell_k);
+    L.has_maxwell |= g.card.maxwell_k > 0;
   }
-  if (m.bulk_modulus > 0) {
-    volume_grad.assign(4 * m.tetrahedra.size() + 8 * m.hexahedra.size(), Vec3::Zero());
-    volume_coef.assign(m.tetrahedra.size() + m.hexahedra.size(), 0.0);
-    if (m.spread_modulus > 0) {
-      spread_grad.assign(64 * m.hexahedra.size(), Vec3::Zero());
-      spread_coef.assign(m.hexahedra.size(), 0.0);
+  L.node_spring_start.assign(nn + 1, 0);
+  for (size_t k = 0; k < ns; ++k) {
+    ++L.node_spring_start[m.spring_i[k] + 1];
+    ++L.node_spring_start[m.spring_j[k] + 1];
+  }
+  for (size_t i = 0; i < nn; ++i) L.node_spring_start[i + 1] += L.node_spring_start[i];
+  L.node_springs.assign(2 * ns, 0);
+  {
+    std::vector<int> fill(L.node_spring_start.begin(), L.node_spring_start.end() - 1);
+    for (size_t k = 0; k < ns; ++k) {
+      L.node_springs[fill[m.spring_i[k]]++] = static_cast<int>(k);
+      L.node_springs[fill[m.spring_j[k]]++] = static_cast<int>(k);
     }
   }
-  spring_group.assign(ns, 0);
-  for (size_t g = 0; g < m.groups.size(); ++g)
-    for (int k = m.groups[g].begin; k < m.groups[g].end; ++k) spring_group[k] = static_cast<int>(g);
+  L.spring_chunk.assign(ns, 0);
+  for (size_t c = 0; c < chunks.size(); ++c)
+    for (int k = chunks[c].k0; k < chunks[c].k1; ++k) L.spring_chunk[k] = static_cast<int>(c);
+  L.min_length.assign(ns, 0);
+  L.min_length2.assign(ns, 0);
+  for (const SpringGroup& g : m.groups) {
+    for (int k = g.begin; k < g.end; ++k) {
+      const double l0 = m.rest_length[k];
+      double lmin = m.options.min_length_fraction * l0;
+      if (g.law) lmin = std::max(lmin, l0 - g.law->remaining_stroke() / m.deflection_scale[k]);
+      if (!m.options.hard_stop) lmin = -std::numeric_limits<double>::infinity();
+      L.min_length[k] = lmin;
+      L.min_length2[k] = lmin * lmin;
+    }
+  }
+  return L;
+}
+
+// The active region's network modulus and the far field's interval and inertia.
+RegionBounds compile_bounds(const Model& m) {
+  RegionBounds B;
+  const size_t nn = m.num_nodes();
   // Network modulus E = sum(k_ax l0^2) / (6 V) (isotropic central-force network, nu = 1/4) and the
   // mean axial stiffness per node, from the stiffness of every spring at rest (K0; k_t(delta0)
   // for a pre-compressed conical card).
@@ -116,8 +114,8 @@ Workspace::Workspace(const Model& m) {
       ksum += kax;
     }
   }
-  modulus = volume > 0 ? kl2 / (6 * volume) : 1.0;
-  node_stiffness = nn > 0 ? 2 * ksum / nn : 1.0;
+  B.modulus = volume > 0 ? kl2 / (6 * volume) : 1.0;
+  B.node_stiffness = nn > 0 ? 2 * ksum / nn : 1.0;
   // Multi-rate far field: omega^2 <= max_i 2 sum(a b K0) / m_i over free nodes (Gershgorin on
   // M^-1 K in the linear phase), and symplectic Euler needs H omega < 2.
   {
@@ -129,15 +127,12 @@ Workspace::Workspace(const Model& m) {
         node_k[m.spring_i[k]] += kax;
         node_k[m.spring_j[k]] += kax;
       }
-      tangent_limit.push_back(1.5 * (g.law ? g.law->rest_stiffness() : g.card.hooke_k) +
-                              g.card.maxwell_k);
-      has_maxwell |= g.card.maxwell_k > 0;
     }
     double omega2 = 0;
     for (size_t i = 0; i < nn; ++i)
       if (m.fixed[i] != 7) omega2 = std::max(omega2, 2 * node_k[i] * m.inv_mass[i]);
     const double dt = m.options.dt;
-    far_max_every = omega2 > 0 ? std::max(1, int(0.9 * 2 / (dt * std::sqrt(omega2)))) : 1;
+    B.far_max_every = omega2 > 0 ? std::max(1, int(0.9 * 2 / (dt * std::sqrt(omega2)))) : 1;
     // The light nodes (edges and corners of a lattice, small cells of a mesh) set that bound; the
     // automatic interval is the typical node's (median of 2 sum(a b K0) / m), and far nodes
     // lighter than their springs allow at that interval step with a larger inertia
@@ -146,15 +141,15 @@ Workspace::Workspace(const Model& m) {
     std::vector<double> rate;
     for (size_t i = 0; i < nn; ++i)
       if (m.fixed[i] != 7) rate.push_back(2 * node_k[i] * m.inv_mass[i]);
-    int typical = far_max_every;
+    int typical = B.far_max_every;
     if (!rate.empty()) {
       std::nth_element(rate.begin(), rate.begin() + rate.size() / 2, rate.end());
       const double w2 = rate[rate.size() / 2];
-      if (w2 > 0) typical = std::max(far_max_every, int(0.9 * 2 / (dt * std::sqrt(w2))));
+      if (w2 > 0) typical = std::max(B.far_max_every, int(0.9 * 2 / (dt * std::sqrt(w2))));
     }
     // Measured instead: the largest eigenvalue of M^-1 K (linear phase, at rest) by Lanczos, and
     // the dampers' explicit damping, which lowers the bound (see far_spectral_bound).
-    measured_every = 0;
+    B.measured_every = 0;
     double ratio = 0;  // largest dashpot / stiffness ratio of a group, s
     for (const SpringGroup& g : m.groups) {
       const double k = (g.law ? g.law->k0() : g.card.hooke_k) + g.card.maxwell_k;
@@ -167,65 +162,125 @@ Workspace::Workspace(const Model& m) {
     auto raise_for = [&](int n) {
       const double H = n * dt, room = 1.8 * 1.8 - 2 * H * m.options.mass_damping;
       if (!(room > 0)) return std::numeric_limits<double>::infinity();
-      return std::max(1.0, (H * H * far_lambda + 2 * H * ratio * far_lambda) / room);
+      return std::max(1.0, (H * H * B.far_lambda + 2 * H * ratio * B.far_lambda) / room);
     };
     if (m.options.active_region && m.options.active_far_every >= 0) {
-      far_lambda = far_spectral_bound(m);
-      far_gamma = m.options.mass_damping + ratio * far_lambda;
+      B.far_lambda = far_spectral_bound(m);
+      B.far_gamma = m.options.mass_damping + ratio * B.far_lambda;
       // The interval is the longest that needs s <= 1.1 (far frequencies within 5 %).
-      for (int n = 1; n < 64 && raise_for(n) <= 1.1; ++n) measured_every = n;
+      for (int n = 1; n < 64 && raise_for(n) <= 1.1; ++n) B.measured_every = n;
       // A mesh whose few lightest, stiffest nodes set the spectrum keeps the typical node's
       // interval with their inertia raised (below) when that is longer.
-      typical = std::max(typical, measured_every);
+      typical = std::max(typical, B.measured_every);
     }
-    far_every = m.options.active_far_every < 0    ? 0
-                : m.options.active_far_every == 0 ? typical
-                                                  : m.options.active_far_every;
-    far_inv_mass = m.inv_mass;
-    const double H = std::max(far_every, 1) * dt;
-    const bool raise = measured_every == 0 || far_every > measured_every;
-    far_raise = 1;
-    if (!raise && far_every > 0) {
-      far_raise = raise_for(far_every);
-      for (size_t i = 0; i < nn; ++i) far_inv_mass[i] = m.inv_mass[i] / far_raise;
+    B.far_every = m.options.active_far_every < 0    ? 0
+                  : m.options.active_far_every == 0 ? typical
+                                                    : m.options.active_far_every;
+    B.far_inv_mass = m.inv_mass;
+    const double H = std::max(B.far_every, 1) * dt;
+    const bool raise = B.measured_every == 0 || B.far_every > B.measured_every;
+    B.far_raise = 1;
+    if (!raise && B.far_every > 0) {
+      B.far_raise = raise_for(B.far_every);
+      for (size_t i = 0; i < nn; ++i) B.far_inv_mass[i] = m.inv_mass[i] / B.far_raise;
     }
     for (size_t i = 0; i < nn && raise; ++i)
       if (node_k[i] > 0)
-        far_inv_mass[i] = std::min(m.inv_mass[i], (2 * 0.9) * (2 * 0.9) / (H * H * 2 * node_k[i]));
+        B.far_inv_mass[i] =
+            std::min(m.inv_mass[i], (2 * 0.9) * (2 * 0.9) / (H * H * 2 * node_k[i]));
   }
-  node_spring_start.assign(nn + 1, 0);
-  for (size_t k = 0; k < ns; ++k) {
-    ++node_spring_start[m.spring_i[k] + 1];
-    ++node_spring_start[m.spring_j[k] + 1];
-  }
-  for (size_t i = 0; i < nn; ++i) node_spring_start[i + 1] += node_spring_start[i];
-  node_springs.assign(2 * ns, 0);
-  {
-    std::vector<int> fill(node_spring_start.begin(), node_spring_start.end() - 1);
-    for (size_t k = 0; k < ns; ++k) {
-      node_springs[fill[m.spring_i[k]]++] = static_cast<int>(k);
-      node_springs[fill[m.spring_j[k]]++] = static_cast<int>(k);
+  return B;
+}
+
+SpringScratch spring_scratch(const Model& m) {
+  SpringScratch S;
+  const size_t ns = m.num_springs(), nn = m.num_nodes();
+  S.deflection.assign(ns, 0);
+  S.load.assign(ns, 0);
+  S.tangent.assign(ns, 0);
+  S.length.assign(ns, 0);
+  S.ux.assign(ns, 1.0);
+  S.uy.assign(ns, 0);
+  S.uz.assign(ns, 0);
+  for (size_t k = 0; k < ns; ++k) {  // directions at rest until the first force evaluation
+    const Vec3 u = m.rest[m.spring_j[k]] - m.rest[m.spring_i[k]];
+    if (u.norm() > 0) {
+      S.ux[k] = u.x() / u.norm();
+      S.uy[k] = u.y() / u.norm();
+      S.uz[k] = u.z() / u.norm();
     }
   }
-  spring_chunk.assign(ns, 0);
-  for (size_t c = 0; c < chunks.size(); ++c)
-    for (int k = chunks[c].k0; k < chunks[c].k1; ++k) spring_chunk[k] = static_cast<int>(c);
-  for (const SpringGroup& g : m.groups) {
-    for (int k = g.begin; k < g.end; ++k) {
-      const double l0 = m.rest_length[k];
-      double lmin = m.options.min_length_fraction * l0;
-      if (g.law) lmin = std::max(lmin, l0 - g.law->remaining_stroke() / m.deflection_scale[k]);
-      if (!m.options.hard_stop) lmin = -std::numeric_limits<double>::infinity();
-      min_length[k] = lmin;
-      min_length2[k] = lmin * lmin;
+  for (auto* v : {&S.px, &S.py, &S.pz, &S.fx, &S.fy, &S.fz}) v->assign(nn, 0.0);
+  for (auto* v : {&S.chunk_ux, &S.chunk_uy, &S.chunk_uz, &S.chunk_length, &S.chunk_deflection,
+                  &S.chunk_load, &S.chunk_tangent})
+    v->assign(SpringLayout::kChunkSprings, 0.0);
+  return S;
+}
+
+ElementScratch element_scratch(const Model& m) {
+  ElementScratch E;
+  if (m.shear_modulus > 0) {
+    E.shear_coef.assign(m.shear_v0.size(), 0.0);
+    E.element_lap.assign(16 * m.tetrahedra.size() + 64 * m.hexahedra.size(), 0.0);
+  }
+  if (m.bulk_modulus > 0) {
+    E.volume_grad.assign(4 * m.tetrahedra.size() + 8 * m.hexahedra.size(), Vec3::Zero());
+    E.volume_coef.assign(m.tetrahedra.size() + m.hexahedra.size(), 0.0);
+    if (m.spread_modulus > 0) {
+      E.spread_grad.assign(64 * m.hexahedra.size(), Vec3::Zero());
+      E.spread_coef.assign(m.hexahedra.size(), 0.0);
     }
   }
+  return E;
+}
+
+ContactScratch contact_scratch(const Model& m) {
+  ContactScratch C;
+  const size_t nn = m.num_nodes();
+  C.n.assign(nn, Vec3::Zero());
+  C.block.assign(nn, Mat3::Zero());
+  C.nodes.assign(nn, 0);
+  C.in_contact.assign(nn, 0);
+  C.candidates.resize(m.probes.size());
+  for (auto& c : C.candidates) c.reserve(m.surface.size());
+  return C;
+}
+
+SystemScratch system_scratch(const Model& m) {
+  SystemScratch Y;
+  const size_t ns = m.num_springs(), nn = m.num_nodes();
+  Y.alpha.assign(ns, 0);
+  Y.beta.assign(ns, 0);
+  for (auto* v : {&Y.x0, &Y.v0}) v->assign(nn, Vec3::Zero());
+  Y.mass.assign(nn, 0.0);
+  Y.free.assign(3 * nn, 0.0);
+  for (size_t i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) Y.free[c * nn + i] = m.free_axes[i][c];
+  for (auto* v : {&Y.diag, &Y.pre}) v->assign(6 * nn, 0.0);
+  for (auto* v : {&Y.rhs, &Y.r, &Y.z, &Y.p, &Y.ap, &Y.dx}) v->assign(3 * nn, 0.0);
+  Y.chunk.assign(6 * SpringLayout::kChunkSprings, 0.0);
+  return Y;
+}
+
+}  // namespace
+
+Workspace::Workspace(const Model& m)
+    : layout(compile_layout(m)),
+      bounds(compile_bounds(m)),
+      force(m.num_nodes(), Vec3::Zero()),
+      springs(spring_scratch(m)),
+      elements(element_scratch(m)),
+      contact(contact_scratch(m)),
+      system(system_scratch(m)) {
+  good.x.assign(m.num_nodes(), Vec3::Zero());
+  good.v.assign(m.num_nodes(), Vec3::Zero());
+  good.maxwell.assign(m.num_springs(), 0);
 }
 
 void options_changed(const Model& m, State& s, Workspace& ws) {
-  const int old_every = ws.far_every;
+  const int old_every = ws.bounds.far_every;
   ws = Workspace(m);
-  if (ws.far_every == old_every) return;
+  if (ws.bounds.far_every == old_every) return;
   RegionState& r = s.region;
   r.far_phase = 0;
   r.num_active = -1;

@@ -19,9 +19,9 @@ namespace {
 
 // Marks node i as having a contact term this evaluation.
 void list_contact_node(Workspace& ws, int i) {
-  if (ws.in_contact[i]) return;
-  ws.in_contact[i] = 1;
-  ws.contact_nodes[ws.num_contact_nodes++] = i;
+  if (ws.contact.in_contact[i]) return;
+  ws.contact.in_contact[i] = 1;
+  ws.contact.nodes[ws.contact.num_nodes++] = i;
 }
 
 }  // namespace
@@ -30,7 +30,7 @@ void list_contact_node(Workspace& ws, int i) {
 // only (`nodes`).
 // The node law of probe k at `center` against positions x, every node or the listed ones
 // (`nodes`): fills probe's force, stiffness and contacts; with a workspace also adds the nodes'
-// forces to ws->force and, with the Jacobian, their scaled normals to ws->contact_n.
+// forces to ws->force and, with the Jacobian, their scaled normals to ws->contact.n.
 void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
                         ProbeState* p, Workspace* ws, bool with_jacobian,
                         const std::vector<int>* nodes) {
@@ -53,28 +53,28 @@ void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const
     ws->force[i] += f;
     // Jacobian h^2 k n n^T stored as a scaled direction (two probes on one node: approximate).
     if (with_jacobian && m.fixed[i] != 7) {
-      ws->contact_n[i] += std::sqrt(h * h * kc) * dir;
+      ws->contact.n[i] += std::sqrt(h * h * kc) * dir;
       list_contact_node(*ws, i);
     }
   }
 }
 
 // Contact of probes (at their proxies, core/contact.h) and planes with the body: forces into
-// ws.force, each probe node's lumped layer stiffness into ws.contact_block and, with the
-// Jacobian, each plane node's scaled normal into ws.contact_n. Planes act on every node, or on
+// ws.force, each probe node's lumped layer stiffness into ws.contact.block and, with the
+// Jacobian, each plane node's scaled normal into ws.contact.n. Planes act on every node, or on
 // the listed ones only (`nodes`; the multi-rate far field keeps its nodes out of contact, see
 // far_step); a probe's candidate triangles are woken with the region (update_region).
 void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                     const std::vector<int>* nodes) {
   const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
   const double h = detail::substep_of(m);
-  for (int q = 0; q < ws.num_contact_nodes; ++q) {
-    const int i = ws.contact_nodes[q];
-    ws.contact_n[i].setZero();
-    ws.contact_block[i].setZero();
-    ws.in_contact[i] = 0;
+  for (int q = 0; q < ws.contact.num_nodes; ++q) {
+    const int i = ws.contact.nodes[q];
+    ws.contact.n[i].setZero();
+    ws.contact.block[i].setZero();
+    ws.contact.in_contact[i] = 0;
   }
-  ws.num_contact_nodes = 0;
+  ws.contact.num_nodes = 0;
   for (size_t q = 0; q < m.probes.size(); ++q) {
     if (m.probes[q].contact == ContactModel::kNodes) {
       ProbeState& p = s.probes[q];
@@ -89,13 +89,13 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
     }
     const ProbeState& p = s.probes[q];
     if (!p.active || !p.proxy_placed) continue;
-    const std::vector<int>& cand = ws.probe_candidates[q];
+    const std::vector<int>& cand = ws.contact.candidates[q];
     ToolContact c;
     tool_contact(m, static_cast<int>(q), probe_radius(m, static_cast<int>(q), p), p.proxy, s.x,
                  cand.data(), static_cast<int>(cand.size()), &c, ws.force.data(),
-                 ws.contact_block.data());
+                 ws.contact.block.data());
     if (c.faces == 0) continue;
-    friction_forces(m, static_cast<int>(q), p, s.x, ws.force.data(), ws.contact_block.data());
+    friction_forces(m, static_cast<int>(q), p, s.x, ws.force.data(), ws.contact.block.data());
     for (int t : cand)
       for (int i : m.surface[t]) list_contact_node(ws, i);
     if (p.stick >= 0)
@@ -117,8 +117,8 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
       ++pl.contacts;
       // One normal per node for the Jacobian: a node behind two plates keeps the first's, a rare
       // case that only slows convergence.
-      if (with_jacobian && m.fixed[i] != 7 && ws.contact_n[i].squaredNorm() == 0) {
-        ws.contact_n[i] = std::sqrt(h * h * kp) * n;
+      if (with_jacobian && m.fixed[i] != 7 && ws.contact.n[i].squaredNorm() == 0) {
+        ws.contact.n[i] = std::sqrt(h * h * kp) * n;
         list_contact_node(ws, i);
       }
     }
@@ -130,16 +130,16 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
 void update_proxies(const Model& m, State& s, Workspace& ws) {
   for (size_t q = 0; q < m.probes.size(); ++q)
     if (m.probes[q].contact == ContactModel::kSurface)
-      update_proxy(m, static_cast<int>(q), s.x, &ws.probe_candidates[q], &s.probes[q]);
+      update_proxy(m, static_cast<int>(q), s.x, &ws.contact.candidates[q], &s.probes[q]);
 }
 
 // Explicit integrators take the contact layer semi-implicitly (step.h): a node with a layer
 // stiffness B advances with m (m I + h^2 B)^-1 f instead of f, on its free axes.
 void semi_implicit_contact(const Model& m, Workspace& ws, double h) {
-  for (int q = 0; q < ws.num_contact_nodes; ++q) {
-    const int i = ws.contact_nodes[q];
+  for (int q = 0; q < ws.contact.num_nodes; ++q) {
+    const int i = ws.contact.nodes[q];
     if (m.fixed[i] == 7) continue;
-    const Mat3& B = ws.contact_block[i];
+    const Mat3& B = ws.contact.block[i];
     if (B.squaredNorm() == 0) continue;
     const Vec3& free = m.free_axes[i];
     const Mat3 A =

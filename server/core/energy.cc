@@ -9,8 +9,8 @@
 
 #include "core/body.h"
 #include "core/contact.h"
+#include "core/element_terms.h"
 #include "core/step_detail.h"
-#include "core/volume.h"
 
 namespace conica {
 
@@ -28,38 +28,7 @@ double potential_energy(const Model& m, const State& s) {
       e += (a / b) * (law_e + 0.5 * g.card.maxwell_k * dm * dm);
     }
   }
-  if (m.bulk_modulus > 0) {
-    Vec3 g[8];
-    double vq[8];
-    const bool spread = m.spread_modulus > 0;
-    for (size_t t = 0; t < m.tetrahedra.size(); ++t) {
-      const double d = element_volume(s.x, m.tetrahedra[t].data(), 4, g) - m.tet_rest_volume[t];
-      e += 0.5 * m.bulk_modulus / std::abs(m.tet_rest_volume[t]) * d * d;
-    }
-    for (size_t h = 0; h < m.hexahedra.size(); ++h) {
-      const double v0 = m.hex_rest_volume[h];
-      const double d = element_volume(s.x, m.hexahedra[h].data(), 8, g, vq) - v0;
-      e += 0.5 * m.bulk_modulus / std::abs(v0) * d * d;
-      for (int q = 0; q < 8 && spread; ++q) {
-        const double dq = vq[q] - m.hex_rest_gauss[8 * h + q] - d / 8;
-        e += 0.5 * 8 * m.spread_modulus / std::abs(v0) * dq * dq;
-      }
-    }
-  }
-  if (m.shear_modulus > 0) {
-    const Vec3* b = m.shear_b.data();
-    const double* v0 = m.shear_v0.data();
-    auto point = [&](const int* nodes, int n) {
-      const Mat3 F = deformation_gradient(s.x, nodes, n, b);
-      Mat3 P;
-      double jm;
-      e += *v0++ * isochoric_neo_hookean(F.data(), m.shear_modulus, P.data(), &jm);
-      b += n;
-    };
-    for (const auto& t : m.tetrahedra) point(t.data(), 4);
-    for (const auto& h : m.hexahedra)
-      for (int q = 0; q < 8; ++q) point(h.data(), 8);
-  }
+  for_each_term(m, [&](auto term) { e += term.energy(m, s.x); });
   for (size_t q = 0; q < m.probes.size(); ++q) {
     const ProbeState& p = s.probes[q];
     if (!p.active || m.probes[q].contact != ContactModel::kNodes) continue;

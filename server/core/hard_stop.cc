@@ -54,7 +54,8 @@ void hard_stop(const Model& m, State& s, Workspace& ws) {
     int n = 0;
     for (int q = 0; q < s.region.num_active; ++q) {
       const int k = s.region.active[q];
-      n += (s.x[m.spring_j[k]] - s.x[m.spring_i[k]]).dot(ws.dir(k)) < ws.min_length[k];
+      n += (s.x[m.spring_j[k]] - s.x[m.spring_i[k]]).dot(ws.springs.dir(k)) <
+           ws.layout.min_length[k];
     }
     if (n > 0) hard_stop_project(m, s, ws);
     return;
@@ -62,13 +63,15 @@ void hard_stop(const Model& m, State& s, Workspace& ws) {
   // Measured along its direction at the last geometry, a spring is no shorter than its length
   // then minus the motion of its two ends since: with no node moved by half the smallest room,
   // none can be short.
-  ws.hard_stop_near =
-      !(ws.slack > 0) || count_moved(m.num_nodes(), s.x.front().data(), ws.px.data(), ws.py.data(),
-                                     ws.pz.data(), 0.5 * ws.slack) > 0;
-  if (!ws.hard_stop_near) return;
-  if (!ws.directions_kept) refresh_directions(m, ws);
+  ws.springs.hard_stop_near =
+      !(ws.springs.slack > 0) ||
+      count_moved(m.num_nodes(), s.x.front().data(), ws.springs.px.data(), ws.springs.py.data(),
+                  ws.springs.pz.data(), 0.5 * ws.springs.slack) > 0;
+  if (!ws.springs.hard_stop_near) return;
+  if (!ws.springs.directions_kept) refresh_directions(m, ws);
   if (count_short(m.num_springs(), s.x.front().data(), m.spring_i.data(), m.spring_j.data(),
-                  ws.ux.data(), ws.uy.data(), ws.uz.data(), ws.min_length.data()) > 0)
+                  ws.springs.ux.data(), ws.springs.uy.data(), ws.springs.uz.data(),
+                  ws.layout.min_length.data()) > 0)
     hard_stop_project(m, s, ws);
 }
 
@@ -76,10 +79,10 @@ void hard_stop_project(const Model& m, State& s, Workspace& ws) {
   const int ns = m.num_springs();
   for (int k = 0; k < ns; ++k) {
     const int i = m.spring_i[k], j = m.spring_j[k];
-    const Vec3 d = ws.dir(k);  // direction before the step: robust to inversion
+    const Vec3 d = ws.springs.dir(k);  // direction before the step: robust to inversion
     const Vec3 u = s.x[j] - s.x[i];
     const double l = u.dot(d);
-    const double lmin = ws.min_length[k];
+    const double lmin = ws.layout.min_length[k];
     if (l >= lmin) continue;
     const double wi = m.inv_mass[i], wj = m.inv_mass[j], w = wi + wj;
     if (w <= 0) continue;

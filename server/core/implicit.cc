@@ -16,6 +16,7 @@
 #include <tuple>
 #include <type_traits>
 
+#include "core/element_terms.h"
 #include "core/step_detail.h"
 
 namespace conica::detail {
@@ -186,112 +187,38 @@ double dot(int n, const double* __restrict a, const double* __restrict b) {
   return m;
 }
 
-// The element terms of the system (volume.h) of one element on N nodes, with p and y gathered
-// per node (P[c][a]: component c of node a): the shear Laplacian lap (N x N, row-major; its block
-// between nodes a and b is lap[a][b] I), the bulk block cg g g^T and, for a hexahedron with the
-// spread term, cq sum_q G_q G_q^T (gq: 8 x 8 gradients, q-major).
-template <int N>
-void element_times(const double (&P)[3][N], const double* lap, const Vec3* g, double cg,
-                   const Vec3* gq, double cq, double (&Y)[3][N]) {
-  for (int c = 0; c < 3; ++c)
-    for (int a = 0; a < N; ++a) Y[c][a] = 0;
-  if (lap) {
-    for (int a = 0; a < N; ++a)
-      for (int b = 0; b < N; ++b) {
-        const double l = lap[N * a + b];
-        for (int c = 0; c < 3; ++c) Y[c][a] += l * P[c][b];
-      }
-  }
-  auto rank_one = [&](const Vec3* u, double k) {
-    double s = 0;
-    for (int a = 0; a < N; ++a) s += u[a].x() * P[0][a] + u[a].y() * P[1][a] + u[a].z() * P[2][a];
-    s *= k;
-    for (int a = 0; a < N; ++a)
-      for (int c = 0; c < 3; ++c) Y[c][a] += s * u[a][c];
-  };
-  if (g) rank_one(g, cg);
-  if (gq)
-    for (int q = 0; q < 8; ++q) rank_one(gq + 8 * q, cq);
-}
-
-// Calls f(nodes, lap, g, cg, gq, cq) with the element terms (see element_times) of every element
-// (N = 4: tetrahedra, then N = 8: hexahedra); absent terms are null.
-template <typename F>
-void for_each_element(const Model& m, const Workspace& ws, F&& f) {
-  const bool bulk = m.bulk_modulus > 0, spread = bulk && m.spread_modulus > 0;
-  const bool shear = m.shear_modulus > 0;
-  if (!bulk && !shear) return;
-  const double h2 = substep_of(m) * substep_of(m);
-  const Vec3* g = bulk ? ws.volume_grad.data() : nullptr;
-  const double* coef = ws.volume_coef.data();
-  const double* lap = shear ? ws.element_lap.data() : nullptr;
-  for (const auto& t : m.tetrahedra) {
-    f(t, lap, g, bulk ? h2 * *coef++ : 0.0, static_cast<const Vec3*>(nullptr), 0.0);
-    if (g) g += 4;
-    if (lap) lap += 16;
-  }
-  for (size_t e = 0; e < m.hexahedra.size(); ++e) {
-    const Vec3* gq = spread ? ws.spread_grad.data() + 64 * e : nullptr;
-    f(m.hexahedra[e], lap, g, bulk ? h2 * *coef++ : 0.0, gq, spread ? h2 * ws.spread_coef[e] : 0.0);
-    if (g) g += 8;
-    if (lap) lap += 64;
-  }
-}
-
-// The shear Laplacian of every element, h^2 sum_q c_q (b_qa . b_qb) (one q for a tetrahedron),
-// into ws.element_lap from the coefficients of the last force evaluation.
-void assemble_shear(const Model& m, Workspace& ws) {
-  if (!(m.shear_modulus > 0)) return;
-  const double h2 = substep_of(m) * substep_of(m);
-  const Vec3* b = m.shear_b.data();
-  const double* c = ws.shear_coef.data();
-  double* lap = ws.element_lap.data();
-  auto element = [&](int n, int points) {
-    for (int k = 0; k < n * n; ++k) lap[k] = 0;
-    for (int q = 0; q < points; ++q, b += n) {
-      const double cq = h2 * *c++;
-      for (int a = 0; a < n; ++a)
-        for (int d = a; d < n; ++d) lap[n * a + d] += cq * b[a].dot(b[d]);
-    }
-    for (int a = 0; a < n; ++a)
-      for (int d = 0; d < a; ++d) lap[n * a + d] = lap[n * d + a];
-    lap += n * n;
-  };
-  for (size_t e = 0; e < m.tetrahedra.size(); ++e) element(4, 1);
-  for (size_t e = 0; e < m.hexahedra.size(); ++e) element(8, 8);
-}
-
 // y = A p on free axes (component-major).
 void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
   const int nn = m.num_nodes();
-  const double* __restrict sm = ws.sys_mass.data();
+  const double* __restrict sm = ws.system.mass.data();
   for (int c = 0; c < 3; ++c)
     for (int i = 0; i < nn; ++i) y[c * nn + i] = sm[i] * p[c * nn + i];
-  for (int q = 0; q < ws.num_contact_nodes; ++q) {
-    const int i = ws.contact_nodes[q];
-    const Vec3& cn = ws.contact_n[i];
+  for (int q = 0; q < ws.contact.num_nodes; ++q) {
+    const int i = ws.contact.nodes[q];
+    const Vec3& cn = ws.contact.n[i];
     const double s = cn.x() * p[i] + cn.y() * p[nn + i] + cn.z() * p[2 * nn + i];
     y[i] += s * cn.x();
     y[nn + i] += s * cn.y();
     y[2 * nn + i] += s * cn.z();
-    const Mat3& B = ws.contact_block[i];  // a surface probe's layer (core/contact.h)
+    const Mat3& B = ws.contact.block[i];  // a surface probe's layer (core/contact.h)
     if (B.squaredNorm() == 0) continue;
-    const Vec3 yi = ws.sys_h2 * (B * Vec3(p[i], p[nn + i], p[2 * nn + i]));
+    const Vec3 yi = ws.system.h2 * (B * Vec3(p[i], p[nn + i], p[2 * nn + i]));
     y[i] += yi.x();
     y[nn + i] += yi.y();
     y[2 * nn + i] += yi.z();
   }
-  double* const w = ws.sys_chunk.data();
-  constexpr int kC = Workspace::kChunkSprings;
-  if (ws.runs.empty()) {
+  double* const w = ws.system.chunk.data();
+  constexpr int kC = SpringLayout::kChunkSprings;
+  if (ws.layout.runs.empty()) {
     // Spring by spring, kC at a time so that the products stay in L1 between the passes.
     const int ns = m.num_springs();
     for (int k0 = 0; k0 < ns; k0 += kC) {
       const int n = std::min(kC, ns - k0);
       gather_differences(n, nn, p, m.spring_i.data() + k0, m.spring_j.data() + k0, w, w + kC,
                          w + 2 * kC);
-      spring_blocks_times(n, ws.ux.data() + k0, ws.uy.data() + k0, ws.uz.data() + k0,
-                          ws.alpha.data() + k0, ws.beta.data() + k0, w, w + kC, w + 2 * kC);
+      spring_blocks_times(n, ws.springs.ux.data() + k0, ws.springs.uy.data() + k0,
+                          ws.springs.uz.data() + k0, ws.system.alpha.data() + k0,
+                          ws.system.beta.data() + k0, w, w + kC, w + 2 * kC);
       for (int t = 0; t < n; ++t) {
         const int i = m.spring_i[k0 + t], j = m.spring_j[k0 + t];
         for (int c = 0; c < 3; ++c) {
@@ -301,17 +228,17 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
       }
     }
   } else {
-    for (const Workspace::Chunk& ch : ws.chunks) {
+    for (const SpringLayout::Chunk& ch : ws.layout.chunks) {
       for (int q = ch.first_run; q < ch.last_run; ++q) {
-        const Workspace::Run& r = ws.runs[q];
+        const SpringLayout::Run& r = ws.layout.runs[q];
         const int t = r.k - ch.k0;
         run_differences(r.n, nn, p + r.i, p + r.j, w + t, w + kC + t, w + 2 * kC + t);
       }
-      spring_blocks_times(ch.k1 - ch.k0, ws.ux.data() + ch.k0, ws.uy.data() + ch.k0,
-                          ws.uz.data() + ch.k0, ws.alpha.data() + ch.k0, ws.beta.data() + ch.k0, w,
-                          w + kC, w + 2 * kC);
+      spring_blocks_times(ch.k1 - ch.k0, ws.springs.ux.data() + ch.k0, ws.springs.uy.data() + ch.k0,
+                          ws.springs.uz.data() + ch.k0, ws.system.alpha.data() + ch.k0,
+                          ws.system.beta.data() + ch.k0, w, w + kC, w + 2 * kC);
       for (int q = ch.first_run; q < ch.last_run; ++q) {
-        const Workspace::Run& r = ws.runs[q];
+        const SpringLayout::Run& r = ws.layout.runs[q];
         const int t = r.k - ch.k0;
         if (r.j - r.i >= r.n) {
           add_run_pair(r.n, nn, w + t, w + kC + t, w + 2 * kC + t, y + r.i, y + r.j);
@@ -322,43 +249,43 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
       }
     }
   }
-  for_each_element(m, ws,
-                   [&](const auto& nodes, const double* lap, const Vec3* g, double cg,
-                       const Vec3* gq, double cq) {
-                     constexpr int N = std::tuple_size_v<std::decay_t<decltype(nodes)>>;
-                     double P[3][N], Y[3][N];
-                     for (int a = 0; a < N; ++a)
-                       for (int c = 0; c < 3; ++c) P[c][a] = p[c * nn + nodes[a]];
-                     element_times(P, lap, g, cg, gq, cq, Y);
-                     for (int a = 0; a < N; ++a)
-                       for (int c = 0; c < 3; ++c) y[c * nn + nodes[a]] += Y[c][a];
-                   });
-  const double* __restrict f = ws.sys_free.data();
+  const double h2 = ws.system.h2;
+  for_each_element(m, [&](auto n, int e, const auto& nodes) {
+    constexpr int N = decltype(n)::value;
+    double P[3][N], Y[3][N] = {};
+    for (int a = 0; a < N; ++a)
+      for (int c = 0; c < 3; ++c) P[c][a] = p[c * nn + nodes[a]];
+    for_each_term_reversed(m,
+                           [&](auto term) { term.template times<N>(m, ws.elements, h2, e, P, Y); });
+    for (int a = 0; a < N; ++a)
+      for (int c = 0; c < 3; ++c) y[c * nn + nodes[a]] += Y[c][a];
+  });
+  const double* __restrict f = ws.system.free.data();
   for (int k = 0; k < 3 * nn; ++k) y[k] *= f[k];
 }
 
 // The block-Jacobi preconditioner: inverse of every node's 3 x 3 diagonal block of A.
 void build_preconditioner(const Model& m, Workspace& ws) {
   const int nn = m.num_nodes();
-  double* __restrict d = ws.sys_diag.data();
-  const double* __restrict sm = ws.sys_mass.data();
+  double* __restrict d = ws.system.diag.data();
+  const double* __restrict sm = ws.system.mass.data();
   for (int c = 0; c < 3; ++c)
     for (int i = 0; i < nn; ++i) {
       d[c * nn + i] = sm[i];
       d[(3 + c) * nn + i] = 0;
     }
-  for (int q = 0; q < ws.num_contact_nodes; ++q) {
-    const int i = ws.contact_nodes[q];
-    const Vec3& cn = ws.contact_n[i];
+  for (int q = 0; q < ws.contact.num_nodes; ++q) {
+    const int i = ws.contact.nodes[q];
+    const Vec3& cn = ws.contact.n[i];
     d[i] += cn.x() * cn.x();
     d[nn + i] += cn.y() * cn.y();
     d[2 * nn + i] += cn.z() * cn.z();
     d[3 * nn + i] += cn.x() * cn.y();
     d[4 * nn + i] += cn.x() * cn.z();
     d[5 * nn + i] += cn.y() * cn.z();
-    const Mat3& B = ws.contact_block[i];  // a surface probe's layer (core/contact.h)
+    const Mat3& B = ws.contact.block[i];  // a surface probe's layer (core/contact.h)
     if (B.squaredNorm() == 0) continue;
-    const Mat3 b = ws.sys_h2 * B;
+    const Mat3 b = ws.system.h2 * B;
     d[i] += b(0, 0);
     d[nn + i] += b(1, 1);
     d[2 * nn + i] += b(2, 2);
@@ -366,52 +293,39 @@ void build_preconditioner(const Model& m, Workspace& ws) {
     d[4 * nn + i] += b(0, 2);
     d[5 * nn + i] += b(1, 2);
   }
-  double* const b = ws.sys_chunk.data();
-  constexpr int kC = Workspace::kChunkSprings;
-  if (ws.runs.empty()) {
+  double* const b = ws.system.chunk.data();
+  constexpr int kC = SpringLayout::kChunkSprings;
+  if (ws.layout.runs.empty()) {
     const int ns = m.num_springs();
     for (int k0 = 0; k0 < ns; k0 += kC) {
       const int n = std::min(kC, ns - k0);
-      block_entries(n, ws.ux.data() + k0, ws.uy.data() + k0, ws.uz.data() + k0,
-                    ws.alpha.data() + k0, ws.beta.data() + k0, kC, b);
+      block_entries(n, ws.springs.ux.data() + k0, ws.springs.uy.data() + k0,
+                    ws.springs.uz.data() + k0, ws.system.alpha.data() + k0,
+                    ws.system.beta.data() + k0, kC, b);
       for (int t = 0; t < n; ++t)
         for (int node : {m.spring_i[k0 + t], m.spring_j[k0 + t]})
           for (int e = 0; e < 6; ++e) d[e * nn + node] += b[e * kC + t];
     }
   } else {
-    for (const Workspace::Chunk& ch : ws.chunks) {
-      block_entries(ch.k1 - ch.k0, ws.ux.data() + ch.k0, ws.uy.data() + ch.k0, ws.uz.data() + ch.k0,
-                    ws.alpha.data() + ch.k0, ws.beta.data() + ch.k0, kC, b);
+    for (const SpringLayout::Chunk& ch : ws.layout.chunks) {
+      block_entries(ch.k1 - ch.k0, ws.springs.ux.data() + ch.k0, ws.springs.uy.data() + ch.k0,
+                    ws.springs.uz.data() + ch.k0, ws.system.alpha.data() + ch.k0,
+                    ws.system.beta.data() + ch.k0, kC, b);
       for (int q = ch.first_run; q < ch.last_run; ++q) {
-        const Workspace::Run& r = ws.runs[q];
+        const SpringLayout::Run& r = ws.layout.runs[q];
         const int t = r.k - ch.k0;
         add_entries(r.n, nn, b + t, kC, d + r.i);
         add_entries(r.n, nn, b + t, kC, d + r.j);
       }
     }
   }
-  for_each_element(m, ws,
-                   [&](const auto& nodes, const double* lap, const Vec3* g, double cg,
-                       const Vec3* gq, double cq) {
-                     constexpr int N = std::tuple_size_v<std::decay_t<decltype(nodes)>>;
-                     auto add = [&](int a, const Vec3& u, double c) {
-                       const int i = nodes[a];
-                       d[i] += c * u.x() * u.x();
-                       d[nn + i] += c * u.y() * u.y();
-                       d[2 * nn + i] += c * u.z() * u.z();
-                       d[3 * nn + i] += c * u.x() * u.y();
-                       d[4 * nn + i] += c * u.x() * u.z();
-                       d[5 * nn + i] += c * u.y() * u.z();
-                     };
-                     for (int a = 0; a < N; ++a) {
-                       if (lap)
-                         for (int c = 0; c < 3; ++c) d[c * nn + nodes[a]] += lap[(N + 1) * a];
-                       if (g) add(a, g[a], cg);
-                       if (gq)
-                         for (int q = 0; q < 8; ++q) add(a, gq[8 * q + a], cq);
-                     }
-                   });
-  invert_blocks(nn, d, ws.sys_free.data(), ws.sys_pre.data());
+  for_each_element(m, [&](auto n, int e, const auto& nodes) {
+    constexpr int N = decltype(n)::value;
+    for_each_term_reversed(m, [&](auto term) {
+      term.template diagonal<N>(m, ws.elements, ws.system.h2, e, nodes, nn, d);
+    });
+  });
+  invert_blocks(nn, d, ws.system.free.data(), ws.system.pre.data());
 }
 
 // alpha = h^2 k_ax + h a b c and beta = h^2 max(0, T / l) of n springs of one card (damper c)
@@ -431,23 +345,24 @@ void system_coefficients(const Model& m, Workspace& ws, double h) {
   for (const SpringGroup& g : m.groups) {
     const int k = g.begin;
     coefficients(g.end - k, h, g.card.damping, m.force_scale.data() + k,
-                 m.deflection_scale.data() + k, ws.tangent.data() + k, ws.load.data() + k,
-                 ws.length.data() + k, ws.alpha.data() + k, ws.beta.data() + k);
+                 m.deflection_scale.data() + k, ws.springs.tangent.data() + k,
+                 ws.springs.load.data() + k, ws.springs.length.data() + k,
+                 ws.system.alpha.data() + k, ws.system.beta.data() + k);
   }
 }
 
 // Preconditioned CG from dx = 0 on A dx = rhs within the budget; returns the iterations taken.
 int solve(const Model& m, Workspace& ws) {
   const int nn = m.num_nodes(), n3 = 3 * nn;
-  double* __restrict dx = ws.sys_dx.data();
-  double* __restrict r = ws.sys_r.data();
-  double* __restrict z = ws.sys_z.data();
-  double* __restrict p = ws.sys_p.data();
-  double* __restrict ap = ws.sys_ap.data();
-  const double* __restrict rhs = ws.sys_rhs.data();
+  double* __restrict dx = ws.system.dx.data();
+  double* __restrict r = ws.system.r.data();
+  double* __restrict z = ws.system.z.data();
+  double* __restrict p = ws.system.p.data();
+  double* __restrict ap = ws.system.ap.data();
+  const double* __restrict rhs = ws.system.rhs.data();
   std::fill(dx, dx + n3, 0.0);
   std::copy(rhs, rhs + n3, r);
-  double rz = precondition(nn, ws.sys_pre.data(), r, z);
+  double rz = precondition(nn, ws.system.pre.data(), r, z);
   std::copy(z, z + n3, p);
   const double bnorm2 = dot(n3, r, r);
   const double tol2 = m.options.cg_tolerance * m.options.cg_tolerance * bnorm2;
@@ -467,7 +382,7 @@ int solve(const Model& m, Workspace& ws) {
       ++it;
       break;
     }
-    const double rz_new = precondition(nn, ws.sys_pre.data(), r, z);
+    const double rz_new = precondition(nn, ws.system.pre.data(), r, z);
     const double beta = rz_new / rz;
     rz = rz_new;
     for (int k = 0; k < n3; ++k) p[k] = z[k] + beta * p[k];
@@ -477,15 +392,14 @@ int solve(const Model& m, Workspace& ws) {
 
 }  // namespace
 
-void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p,
-                    double* y) {
+void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p, double* y) {
   const int nn = m.num_nodes();
   const double mfac = 1.0 + h * m.options.mass_damping;
-  for (int i = 0; i < nn; ++i) ws.sys_mass[i] = m.mass[i] * mfac;
+  for (int i = 0; i < nn; ++i) ws.system.mass[i] = m.mass[i] * mfac;
   evaluate_forces(m, s, ws, true);
-  ws.sys_h2 = h * h;
+  ws.system.h2 = h * h;
   system_coefficients(m, ws, h);
-  assemble_shear(m, ws);
+  for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
   apply_system(m, ws, p, y);
 }
 
@@ -493,25 +407,26 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
   const double h = substep_of(m);
   const int nn = m.num_nodes(), ns = m.num_springs();
   for (int i = 0; i < nn; ++i) {
-    ws.x0[i] = s.x[i];
-    ws.v0[i] = s.v[i];
+    ws.system.x0[i] = s.x[i];
+    ws.system.v0[i] = s.v[i];
     s.x[i] += h * s.v[i].cwiseProduct(m.free_axes[i]);  // predictor x1 = x0 + h v0
   }
   hard_stop(m, s, ws);  // the predictor must not cross solid height either
   const double mfac = 1.0 + h * m.options.mass_damping;
-  for (int i = 0; i < nn; ++i) ws.sys_mass[i] = m.mass[i] * mfac;
+  for (int i = 0; i < nn; ++i) ws.system.mass[i] = m.mass[i] * mfac;
 
   for (int it = 0; it < m.options.newton_iterations; ++it) {
-    for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.x0[i]) / h;
+    for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.system.x0[i]) / h;
     evaluate_forces(m, s, ws, true);
     // rhs = -h^2 R = h^2 f - M (x1 - x0 - h v0), on free axes.
     for (int i = 0; i < nn; ++i) {
-      const Vec3 res = h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.x0[i] - h * ws.v0[i]);
-      for (int c = 0; c < 3; ++c) ws.sys_rhs[c * nn + i] = res[c] * ws.sys_free[c * nn + i];
+      const Vec3 res =
+          h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.system.x0[i] - h * ws.system.v0[i]);
+      for (int c = 0; c < 3; ++c) ws.system.rhs[c * nn + i] = res[c] * ws.system.free[c * nn + i];
     }
-    ws.sys_h2 = h * h;
+    ws.system.h2 = h * h;
     system_coefficients(m, ws, h);
-    assemble_shear(m, ws);
+    for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
     build_preconditioner(m, ws);
     s.counters.cg_iterations += solve(m, ws);
 
@@ -519,20 +434,22 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
     // and the step does not shorten it further). Measured along its direction, a spring's length
     // changes by at most the motion of its two ends: a step that moves no node by half the
     // smallest room to the hard stop (at these positions, from the force pass) needs no test.
-    const double* dx = ws.sys_dx.data();
+    const double* dx = ws.system.dx.data();
     double step_len = 1.0;
-    if (!(ws.slack > 2 * std::sqrt(max_node_motion2(nn, dx)))) {
+    if (!(ws.springs.slack > 2 * std::sqrt(max_node_motion2(nn, dx)))) {
       for (int tries = 0; tries < 12; ++tries) {
-        if (count_blocked(ns, nn, ws.px.data(), ws.py.data(), ws.pz.data(), dx, step_len,
-                          m.spring_i.data(), m.spring_j.data(), ws.ux.data(), ws.uy.data(),
-                          ws.uz.data(), ws.min_length.data(), ws.length.data()) == 0)
+        if (count_blocked(ns, nn, ws.springs.px.data(), ws.springs.py.data(), ws.springs.pz.data(),
+                          dx, step_len, m.spring_i.data(), m.spring_j.data(), ws.springs.ux.data(),
+                          ws.springs.uy.data(), ws.springs.uz.data(), ws.layout.min_length.data(),
+                          ws.springs.length.data()) == 0)
           break;
         step_len *= 0.5;
       }
     }
     for (int i = 0; i < nn; ++i) s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
   }
-  for (int i = 0; i < nn; ++i) s.v[i] = ((s.x[i] - ws.x0[i]) / h).cwiseProduct(m.free_axes[i]);
+  for (int i = 0; i < nn; ++i)
+    s.v[i] = ((s.x[i] - ws.system.x0[i]) / h).cwiseProduct(m.free_axes[i]);
 }
 
 }  // namespace conica::detail

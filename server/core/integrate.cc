@@ -73,7 +73,7 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
                   m.free_axes.front().data(), s.x.front().data(), s.v.front().data());
     return;
   }
-  if (ws.far_every > 0) {
+  if (ws.bounds.far_every > 0) {
     // Multi-rate: the border keeps the impulse of the awake springs for its next far step.
     for (int i : s.region.border) s.region.impulse[i] += h * ws.force[i];
     for (int i : s.region.awake_list) {

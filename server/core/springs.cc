@@ -147,8 +147,10 @@ void group_loads(const Model& m, const State& s, const SpringGroup& g, int k0, i
 }
 
 SpringValues values_at(Workspace& ws, int k) {
-  return {ws.ux.data() + k,         ws.uy.data() + k,   ws.uz.data() + k,     ws.length.data() + k,
-          ws.deflection.data() + k, ws.load.data() + k, ws.tangent.data() + k};
+  return {ws.springs.ux.data() + k,         ws.springs.uy.data() + k,
+          ws.springs.uz.data() + k,         ws.springs.length.data() + k,
+          ws.springs.deflection.data() + k, ws.springs.load.data() + k,
+          ws.springs.tangent.data() + k};
 }
 
 }  // namespace
@@ -157,9 +159,9 @@ SpringValues values_at(Workspace& ws, int k) {
 void copy_positions(const std::vector<Vec3>& x, Workspace& ws) {
   const int nn = static_cast<int>(x.size());
   for (int i = 0; i < nn; ++i) {
-    ws.px[i] = x[i].x();
-    ws.py[i] = x[i].y();
-    ws.pz[i] = x[i].z();
+    ws.springs.px[i] = x[i].x();
+    ws.springs.py[i] = x[i].y();
+    ws.springs.pz[i] = x[i].z();
   }
 }
 
@@ -171,42 +173,45 @@ void refresh_directions(const Model& m, Workspace& ws) {
     const int i = m.spring_i[k], j = m.spring_j[k];
     // The arithmetic of normalise_chunk, so that a direction is the same bits whether the force
     // pass kept it or it is refreshed here (a replay must not depend on which path ran).
-    const double dx = ws.px[j] - ws.px[i], dy = ws.py[j] - ws.py[i], dz = ws.pz[j] - ws.pz[i];
+    const double dx = ws.springs.px[j] - ws.springs.px[i], dy = ws.springs.py[j] - ws.springs.py[i],
+                 dz = ws.springs.pz[j] - ws.springs.pz[i];
     const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
     const double inv = 1.0 / std::max(l, 1e-300);
-    ws.ux[k] = dx * inv;
-    ws.uy[k] = dy * inv;
-    ws.uz[k] = dz * inv;
+    ws.springs.ux[k] = dx * inv;
+    ws.springs.uy[k] = dy * inv;
+    ws.springs.uz[k] = dz * inv;
   }
-  ws.directions_kept = true;
+  ws.springs.directions_kept = true;
 }
 
-// Geometry, loads and forces (summed into ws.fx, fy, fz, or into out[0..2] when given) of one
-// chunk of springs in runs, with force scales a (per spring); values kept per spring or only in
+// Geometry, loads and forces (summed into ws.springs.fx, fy, fz, or into out[0..2] when given) of
+// one chunk of springs in runs, with force scales a (per spring); values kept per spring or only in
 // the chunk buffers.
-void chunk_forces(const Model& m, const State& s, Workspace& ws, const Workspace::Chunk& c,
+void chunk_forces(const Model& m, const State& s, Workspace& ws, const SpringLayout::Chunk& c,
                   bool keep, const double* __restrict a, std::int64_t* slack, double* const* out) {
-  double* const fx = out ? out[0] : ws.fx.data();
-  double* const fy = out ? out[1] : ws.fy.data();
-  double* const fz = out ? out[2] : ws.fz.data();
+  double* const fx = out ? out[0] : ws.springs.fx.data();
+  double* const fy = out ? out[1] : ws.springs.fy.data();
+  double* const fz = out ? out[2] : ws.springs.fz.data();
   const SpringValues v =
       keep ? values_at(ws, c.k0)
-           : SpringValues{ws.chunk_ux.data(),     ws.chunk_uy.data(),         ws.chunk_uz.data(),
-                          ws.chunk_length.data(), ws.chunk_deflection.data(), ws.chunk_load.data(),
-                          ws.chunk_tangent.data()};
+           : SpringValues{ws.springs.chunk_ux.data(),         ws.springs.chunk_uy.data(),
+                          ws.springs.chunk_uz.data(),         ws.springs.chunk_length.data(),
+                          ws.springs.chunk_deflection.data(), ws.springs.chunk_load.data(),
+                          ws.springs.chunk_tangent.data()};
   for (int q = c.first_run; q < c.last_run; ++q) {
-    const Workspace::Run& r = ws.runs[q];
+    const SpringLayout::Run& r = ws.layout.runs[q];
     const int t = r.k - c.k0;
-    run_vectors(r.n, ws.px.data() + r.i, ws.py.data() + r.i, ws.pz.data() + r.i, ws.px.data() + r.j,
-                ws.py.data() + r.j, ws.pz.data() + r.j, v.ux + t, v.uy + t, v.uz + t);
+    run_vectors(r.n, ws.springs.px.data() + r.i, ws.springs.py.data() + r.i,
+                ws.springs.pz.data() + r.i, ws.springs.px.data() + r.j, ws.springs.py.data() + r.j,
+                ws.springs.pz.data() + r.j, v.ux + t, v.uy + t, v.uz + t);
   }
   *slack = std::min(
-      *slack,
-      normalise_chunk(c.k1 - c.k0, m.rest_length.data() + c.k0, m.deflection_scale.data() + c.k0,
-                      ws.min_length.data() + c.k0, v.ux, v.uy, v.uz, v.length, v.deflection));
+      *slack, normalise_chunk(c.k1 - c.k0, m.rest_length.data() + c.k0,
+                              m.deflection_scale.data() + c.k0, ws.layout.min_length.data() + c.k0,
+                              v.ux, v.uy, v.uz, v.length, v.deflection));
   group_loads(m, s, m.groups[c.group], c.k0, c.k1, v);
   for (int q = c.first_run; q < c.last_run; ++q) {
-    const Workspace::Run& r = ws.runs[q];
+    const SpringLayout::Run& r = ws.layout.runs[q];
     const int t = r.k - c.k0;
     if (r.j - r.i >= r.n) {
       scatter_run_pair(r.n, a + r.k, v.load + t, v.ux + t, v.uy + t, v.uz + t, fx + r.i, fy + r.i,
@@ -226,21 +231,23 @@ void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep) {
   const int nn = m.num_nodes();
   copy_positions(s.x, ws);
   const double* __restrict a = m.force_scale.data();
-  ws.directions_kept = true;
-  if (ws.runs.empty()) {
+  ws.springs.directions_kept = true;
+  if (ws.layout.runs.empty()) {
     const int ns = m.num_springs();
-    gather_vectors(ns, s.x.front().data(), m.spring_i.data(), m.spring_j.data(), ws.ux.data(),
-                   ws.uy.data(), ws.uz.data());
-    ws.slack = room_of(normalise_chunk(ns, m.rest_length.data(), m.deflection_scale.data(),
-                                       ws.min_length.data(), ws.ux.data(), ws.uy.data(),
-                                       ws.uz.data(), ws.length.data(), ws.deflection.data()));
+    gather_vectors(ns, s.x.front().data(), m.spring_i.data(), m.spring_j.data(),
+                   ws.springs.ux.data(), ws.springs.uy.data(), ws.springs.uz.data());
+    ws.springs.slack = room_of(normalise_chunk(
+        ns, m.rest_length.data(), m.deflection_scale.data(), ws.layout.min_length.data(),
+        ws.springs.ux.data(), ws.springs.uy.data(), ws.springs.uz.data(), ws.springs.length.data(),
+        ws.springs.deflection.data()));
     for (const SpringGroup& g : m.groups)
       group_loads(m, s, g, g.begin, g.end, values_at(ws, g.begin));
-    const double* __restrict load = ws.load.data();
+    const double* __restrict load = ws.springs.load.data();
     double* __restrict F = ws.force.front().data();
     for (int k = 0; k < ns; ++k) {
       const double fk = a[k] * load[k];
-      const double fx = fk * ws.ux[k], fy = fk * ws.uy[k], fz = fk * ws.uz[k];
+      const double fx = fk * ws.springs.ux[k], fy = fk * ws.springs.uy[k],
+                   fz = fk * ws.springs.uz[k];
       const int i = 3 * m.spring_i[k], j = 3 * m.spring_j[k];
       F[i] -= fx;
       F[i + 1] -= fy;
@@ -253,16 +260,18 @@ void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep) {
   }
   // Chunk by chunk; unless kept (the implicit solver needs every spring's values), a chunk's
   // values live in the chunk buffers only, and no per-spring array is streamed through memory.
-  keep = keep || ws.hard_stop_near;  // the hard stop will need them: cheaper kept than refreshed
-  ws.directions_kept = keep;
-  std::fill(ws.fx.begin(), ws.fx.end(), 0.0);
-  std::fill(ws.fy.begin(), ws.fy.end(), 0.0);
-  std::fill(ws.fz.begin(), ws.fz.end(), 0.0);
+  keep = keep ||
+         ws.springs.hard_stop_near;  // the hard stop will need them: cheaper kept than refreshed
+  ws.springs.directions_kept = keep;
+  std::fill(ws.springs.fx.begin(), ws.springs.fx.end(), 0.0);
+  std::fill(ws.springs.fy.begin(), ws.springs.fy.end(), 0.0);
+  std::fill(ws.springs.fz.begin(), ws.springs.fz.end(), 0.0);
   std::int64_t slack = kNoRoom;
-  for (const Workspace::Chunk& c : ws.chunks) chunk_forces(m, s, ws, c, keep, a, &slack);
-  ws.slack = room_of(slack);
-  node_forces(nn, m.mass.data(), s.v.front().data(), ws.fx.data(), ws.fy.data(), ws.fz.data(),
-              m.options.gravity.data(), m.options.mass_damping, ws.force.front().data());
+  for (const SpringLayout::Chunk& c : ws.layout.chunks) chunk_forces(m, s, ws, c, keep, a, &slack);
+  ws.springs.slack = room_of(slack);
+  node_forces(nn, m.mass.data(), s.v.front().data(), ws.springs.fx.data(), ws.springs.fy.data(),
+              ws.springs.fz.data(), m.options.gravity.data(), m.options.mass_damping,
+              ws.force.front().data());
 }
 
 }  // namespace detail

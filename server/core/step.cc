@@ -10,6 +10,7 @@
 
 #include "core/body.h"
 #include "core/contact.h"
+#include "core/element_terms.h"
 #include "core/step_detail.h"
 #include "core/volume.h"
 
@@ -22,17 +23,16 @@ void evaluate_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian
   if (region_in_use(m, s) && !with_jacobian) {
     forces_active(m, s, ws);
     lap(s, ws, Stage::kSprings);
-    contact_forces(m, s, ws, false, ws.far_every > 0 ? &s.region.awake_list : nullptr);
+    contact_forces(m, s, ws, false, ws.bounds.far_every > 0 ? &s.region.awake_list : nullptr);
     lap(s, ws, Stage::kContact);
     return;
   }
   const double mu = m.options.mass_damping;
-  if (ws.runs.empty())  // the runs path writes the node terms with the spring forces
+  if (ws.layout.runs.empty())  // the runs path writes the node terms with the spring forces
     for (int i = 0; i < nn; ++i) ws.force[i] = m.mass[i] * (m.options.gravity - mu * s.v[i]);
   spring_forces(m, s, ws, with_jacobian);
   lap(s, ws, Stage::kSprings);
-  volume_forces(m, s, ws);
-  shear_forces(m, s, ws);
+  element_forces(m, s, ws);
   lap(s, ws, Stage::kElements);
   contact_forces(m, s, ws, with_jacobian);
   lap(s, ws, Stage::kContact);
@@ -47,7 +47,7 @@ bool choose_region(const Model& m, State& s, Workspace& ws) {
   const bool region = m.options.active_region && m.options.integrator != Integrator::kImplicitEuler;
   // Multi-rate far field: the region is chosen at the start of an interval, the far field steps at
   // its end; in between only the awake nodes change, and only they are saved and checked.
-  bool multirate = region && ws.far_every > 0;
+  bool multirate = region && ws.bounds.far_every > 0;
   if (region && (!multirate || s.region.far_phase == 0 || s.region.num_active < 0)) {
     update_region(m, s, ws);
     // A region that costs about a whole step is not worth its bookkeeping: the whole body steps
@@ -72,14 +72,14 @@ bool choose_region(const Model& m, State& s, Workspace& ws) {
 void save_good(const State& s, Workspace& ws, bool partial) {
   if (partial) {
     for (int i : s.region.awake_list) {
-      ws.good_x[i] = s.x[i];
-      ws.good_v[i] = s.v[i];
+      ws.good.x[i] = s.x[i];
+      ws.good.v[i] = s.v[i];
     }
   } else {
-    std::copy(s.x.begin(), s.x.end(), ws.good_x.begin());
-    std::copy(s.v.begin(), s.v.end(), ws.good_v.begin());
+    std::copy(s.x.begin(), s.x.end(), ws.good.x.begin());
+    std::copy(s.v.begin(), s.v.end(), ws.good.v.begin());
   }
-  if (ws.has_maxwell) std::copy(s.maxwell.begin(), s.maxwell.end(), ws.good_maxwell.begin());
+  if (ws.layout.has_maxwell) std::copy(s.maxwell.begin(), s.maxwell.end(), ws.good.maxwell.begin());
 }
 
 // One substep of the model's integrator, then the hard stop and the Maxwell branches.
@@ -106,13 +106,14 @@ void substep(const Model& m, State& s, Workspace& ws) {
 StepStatus guard(const Model& m, State& s, Workspace& ws, bool partial) {
   if (partial ? nodes_ok(m, s, s.region.awake_list) : state_ok(m, s)) return StepStatus::kOk;
   if (partial) {
-    for (int i : s.region.awake_list) s.x[i] = ws.good_x[i];
+    for (int i : s.region.awake_list) s.x[i] = ws.good.x[i];
     for (int i : s.region.border) s.region.impulse[i].setZero();
   } else {
-    std::copy(ws.good_x.begin(), ws.good_x.end(), s.x.begin());
+    std::copy(ws.good.x.begin(), ws.good.x.end(), s.x.begin());
   }
   std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
-  if (ws.has_maxwell) std::copy(ws.good_maxwell.begin(), ws.good_maxwell.end(), s.maxwell.begin());
+  if (ws.layout.has_maxwell)
+    std::copy(ws.good.maxwell.begin(), ws.good.maxwell.end(), s.maxwell.begin());
   ++s.counters.rollbacks;
   return StepStatus::kRolledBack;
 }
@@ -140,14 +141,14 @@ StepStatus step(const Model& m, State& s, Workspace& ws) {
   update_proxies(m, s, ws);
   lap(s, ws, Stage::kProxies);
   const bool multirate = choose_region(m, s, ws);
-  const bool far_tick = multirate && s.region.far_phase == ws.far_every - 1;
+  const bool far_tick = multirate && s.region.far_phase == ws.bounds.far_every - 1;
   const bool partial = multirate && !far_tick;
   save_good(s, ws, partial);
   lap(s, ws, Stage::kRegion);
   for (int sub = 0; sub < m.options.substeps; ++sub) substep(m, s, ws);
   if (multirate) far_forces_part(m, s, ws, s.region.far_phase);
   if (far_tick) far_step(m, s, ws);
-  if (multirate) s.region.far_phase = (s.region.far_phase + 1) % ws.far_every;
+  if (multirate) s.region.far_phase = (s.region.far_phase + 1) % ws.bounds.far_every;
   lap(s, ws, Stage::kFarField);
   ++s.counters.steps;
   ++s.tick;

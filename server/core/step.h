@@ -86,18 +86,16 @@
 
 namespace conica {
 
-struct Workspace {
-  explicit Workspace(const Model& model);
-  Vec3 dir(int k) const { return Vec3(ux[k], uy[k], uz[k]); }
+// What the compile step derives from the model (layout, bounds) and each stage's scratch, sized
+// once per model (compile.cc). Nothing here outlives a tick: a Workspace built afresh at any tick
+// continues a State exactly.
 
-  std::vector<double> deflection, load, tangent;  // (num_springs) card units
-  std::vector<double> length;                     // (num_springs) m
-  std::vector<double> ux, uy, uz;                 // (num_springs) unit direction i -> j
-  std::vector<double> min_length, min_length2;    // (num_springs) m and m^2, hard stop
-  std::vector<Vec3> force;                        // (num_nodes) N
+// The springs in the order the stages stream them (compile stage).
+struct SpringLayout {
   // Springs in runs: [k, k + n) join nodes i + t and j + t (t < n). Set when the model's springs
   // are mostly in runs (lattices, see build_model); the step then reads positions and writes
-  // forces as contiguous streams of the structure-of-arrays copies below instead of gathering.
+  // forces as contiguous streams of the structure-of-arrays copies in SpringScratch instead of
+  // gathering.
   struct Run {
     int k, n, i, j;
   };
@@ -109,6 +107,36 @@ struct Workspace {
   };
   std::vector<Chunk> chunks;
   static constexpr int kChunkSprings = 256;
+  std::vector<double> min_length, min_length2;       // (num_springs) m and m^2, hard stop
+  std::vector<int> spring_group;                     // (num_springs) group of each spring
+  std::vector<int> node_spring_start, node_springs;  // (num_nodes + 1), (2 num_springs): springs
+                                                     // of node i: [start[i], start[i + 1])
+  std::vector<int> spring_chunk;                     // (num_springs) its chunk (runs path)
+  std::vector<double> tangent_limit;                 // (groups) card units: far springs beyond wake
+  bool has_maxwell = false;                          // a group has a Maxwell branch
+};
+
+// The active region's constants (compile stage; its dynamic part is State::region).
+struct RegionBounds {
+  double modulus = 0;                // Pa, network estimate
+  double node_stiffness = 0;         // N/m, mean axial stiffness per node
+  int far_every = 0;                 // N ticks per far step; 0: frozen far field
+  int far_max_every = 1;             // the far field's stability bound on N
+                                     // (Gershgorin, lightest node)
+  int measured_every = 0;            // the bound from the measured spectrum (0: not
+                                     // measured: frozen or no active region)
+  double far_lambda = 0;             // 1/s^2, largest eigenvalue of M^-1 K measured
+  double far_gamma = 0;              // 1/s, the far step's explicit damping bound
+  double far_raise = 1;              // inertia factor of every far node (measured)
+  std::vector<double> far_inv_mass;  // (num_nodes) 1/kg, inertia of a far step
+};
+
+// The spring stage's scratch (springs.cc), read by the implicit system and the hard stop.
+struct SpringScratch {
+  Vec3 dir(int k) const { return Vec3(ux[k], uy[k], uz[k]); }
+  std::vector<double> deflection, load, tangent;  // (num_springs) card units
+  std::vector<double> length;                     // (num_springs) m
+  std::vector<double> ux, uy, uz;                 // (num_springs) unit direction i -> j
   // A chunk's direction, length, deflection, load and tangent when they are not kept per spring
   // (explicit integrators; directions_kept false: ux, uy, uz are stale until refreshed).
   std::vector<double> chunk_ux, chunk_uy, chunk_uz, chunk_length, chunk_deflection, chunk_load,
@@ -120,47 +148,10 @@ struct Workspace {
   // Smallest length - min_length over springs at the last geometry (m): while no node has moved
   // by more than half of it, no spring can be short, and the hard-stop pass is skipped.
   double slack = -1;
-  // Implicit solver (implicit.cc). Node vectors named sys_* are component-major: entry c n + i
-  // is component c of node i; sys_diag and sys_pre hold six such entries (00 11 22 01 02 12).
-  std::vector<double> alpha, beta;  // (num_springs) system coefficients
-  // Contact (core/contact.h). Planes: normal * sqrt(h^2 k_p) per node behind a plate (implicit
-  // only). Probes: each node's lumped layer stiffness (N/m), what the implicit system and the
-  // explicit integrators' semi-implicit contact update use. The first num_contact_nodes entries of
-  // contact_nodes list the nodes with either (in_contact flags them).
-  std::vector<Vec3> contact_n;           // (num_nodes)
-  std::vector<Mat3> contact_block;       // (num_nodes) N/m
-  std::vector<int> contact_nodes;        // (num_nodes)
-  std::vector<std::uint8_t> in_contact;  // (num_nodes)
-  int num_contact_nodes = 0;
-  double sys_h2 = 0;                               // s^2, h^2 of the implicit system being solved
-  std::vector<std::vector<int>> probe_candidates;  // (probes) surface triangles near each proxy,
-                                                   // capacity reserved for every triangle
-  std::vector<Vec3> x0, v0;                        // (num_nodes) state at the step's start
-  std::vector<double> sys_mass;                    // (num_nodes) kg, m (1 + h mu)
-  std::vector<double> sys_free;                    // (3 num_nodes) 1 on free axes, 0 on fixed
-  std::vector<double> sys_diag, sys_pre;           // (6 num_nodes) diagonal blocks, inverses
-  std::vector<double> sys_rhs, sys_r, sys_z, sys_p, sys_ap, sys_dx;  // (3 num_nodes) PCG
-  std::vector<double> sys_chunk;  // (6 kChunkSprings) a chunk's products/blocks
-  // Active region (its dynamic part is State::region).
-  std::vector<int> spring_group;  // (num_springs) group of each spring
-  double modulus = 0;             // Pa, network estimate
-  double node_stiffness = 0;      // N/m, mean axial stiffness per node
-  // Multi-rate far field.
-  int far_every = 0;                 // N ticks per far step; 0: frozen far field
-  int far_max_every = 1;             // the far field's stability bound on N
-                                     // (Gershgorin, lightest node)
-  int measured_every = 0;            // the bound from the measured spectrum (0: not
-                                     // measured: frozen or no active region)
-  double far_lambda = 0;             // 1/s^2, largest eigenvalue of M^-1 K measured
-  double far_gamma = 0;              // 1/s, the far step's explicit damping bound
-  double far_raise = 1;              // inertia factor of every far node (measured)
-  std::vector<double> far_inv_mass;  // (num_nodes) 1/kg, inertia of a far step
-  // Incremental region updates (lattices, multi-rate).
-  std::vector<int> node_spring_start, node_springs;  // (num_nodes + 1), (2 num_springs): springs
-                                                     // of node i: [start[i], start[i + 1])
-  std::vector<int> spring_chunk;                     // (num_springs) its chunk (runs path)
-  std::vector<double> tangent_limit;                 // (groups) card units: far springs beyond wake
-  bool has_maxwell = false;                          // a group has a Maxwell branch
+};
+
+// The element stage's scratch (core/element_terms.h), what the implicit system reads of it.
+struct ElementScratch {
   // Volume stiffness (model.bulk_modulus > 0): dV/dx of every element node at the last force
   // evaluation, tetrahedra first (4 each), then hexahedra (8 each), and kappa / |V0| per element
   // in the same order (the implicit system adds h^2 kappa / |V0| g g^T per element).
@@ -176,10 +167,54 @@ struct Workspace {
   // Per element (tetrahedra 16 entries, then hexahedra 64): the implicit system's shear
   // Laplacian h^2 sum_q c_q (b_qa . b_qb), assembled once per Newton iteration.
   std::vector<double> element_lap;
+};
+
+// The contact stage's scratch (contact_stage.cc, core/contact.h). Planes: normal * sqrt(h^2 k_p)
+// per node behind a plate (implicit only). Probes: each node's lumped layer stiffness (N/m), what
+// the implicit system and the explicit integrators' semi-implicit contact update use. The first
+// num_nodes entries of nodes list the nodes with either (in_contact flags them).
+struct ContactScratch {
+  std::vector<Vec3> n;                   // (num_nodes)
+  std::vector<Mat3> block;               // (num_nodes) N/m
+  std::vector<int> nodes;                // (num_nodes)
+  std::vector<std::uint8_t> in_contact;  // (num_nodes)
+  int num_nodes = 0;
+  std::vector<std::vector<int>> candidates;  // (probes) surface triangles near each proxy,
+                                             // capacity reserved for every triangle
+};
+
+// The implicit integrator's system and solver scratch (implicit.cc). Node vectors are
+// component-major: entry c n + i is component c of node i; diag and pre hold six such entries
+// (00 11 22 01 02 12).
+struct SystemScratch {
+  std::vector<double> alpha, beta;           // (num_springs) system coefficients
+  double h2 = 0;                             // s^2, h^2 of the system being solved
+  std::vector<Vec3> x0, v0;                  // (num_nodes) state at the step's start
+  std::vector<double> mass;                  // (num_nodes) kg, m (1 + h mu)
+  std::vector<double> free;                  // (3 num_nodes) 1 on free axes, 0 on fixed
+  std::vector<double> diag, pre;             // (6 num_nodes) diagonal blocks, inverses
+  std::vector<double> rhs, r, z, p, ap, dx;  // (3 num_nodes) PCG
+  std::vector<double> chunk;                 // (6 kChunkSprings) a chunk's products/blocks
+};
+
+// The guard's last good state (step.cc): what a rollback returns to.
+struct Rollback {
+  std::vector<Vec3> x, v;
+  std::vector<double> maxwell;
+};
+
+struct Workspace {
+  explicit Workspace(const Model& model);
+
+  SpringLayout layout;
+  RegionBounds bounds;
+  std::vector<Vec3> force;  // (num_nodes) N, the forces being summed by the stages
+  SpringScratch springs;
+  ElementScratch elements;
+  ContactScratch contact;
+  SystemScratch system;
+  Rollback good;
   std::uint64_t lap_ns = 0;  // steady clock at the last stage lap (step_detail.h)
-  // Last good state for rollback.
-  std::vector<Vec3> good_x, good_v;
-  std::vector<double> good_maxwell;
 };
 
 // The largest eigenvalue (1/s^2) of M^-1 K of the body at rest in its springs' linear phase

@@ -1,6 +1,6 @@
 // Internals shared by the stages of the step (one file each, see step.h); not an API.
 //   springs.cc         spring geometry, law, dampers, Maxwell branches -> ws.force
-//   element_forces.cc  volume, spread and shear terms of the elements -> ws.force
+//   element_terms.cc   volume, spread and shear terms of the elements -> ws.force (element_terms.h)
 //   contact_stage.cc   probes (node law, surface proxies) and planes -> ws.force, layer blocks
 //   region.cc          the active region and the multi-rate far field (state in State::region)
 //   integrate.cc       explicit integrators and the guard; implicit.cc: backward Euler
@@ -73,26 +73,24 @@ inline SpringLoad spring_load(const SpringGroup& g, double delta, double rate, d
 
 // Forces on every node at (state.x, state.v) into ws.force, as compute_forces. With
 // `with_jacobian`, every spring's direction, length, load and tangent are kept per spring and
-// contact leaves its normals in ws.contact_n (what the implicit system is built from).
+// contact leaves its normals in ws.contact.n (what the implicit system is built from).
 void evaluate_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian);
 
 // Springs (springs.cc).
-// A structure-of-arrays copy of x into ws.px, py, pz (the positions of this geometry).
+// A structure-of-arrays copy of x into ws.springs.px, py, pz (the positions of this geometry).
 void copy_positions(const std::vector<Vec3>& x, Workspace& ws);
 // Every spring's direction at the positions of the last geometry.
 void refresh_directions(const Model& m, Workspace& ws);
 // Geometry, loads and forces of one chunk of springs in runs with force scales a, summed into
-// ws.fx, fy, fz or into out[0..2]; the chunk's smallest room into *slack.
-void chunk_forces(const Model& m, const State& s, Workspace& ws, const Workspace::Chunk& c,
+// ws.springs.fx, fy, fz or into out[0..2]; the chunk's smallest room into *slack.
+void chunk_forces(const Model& m, const State& s, Workspace& ws, const SpringLayout::Chunk& c,
                   bool keep, const double* __restrict a, std::int64_t* slack,
                   double* const* out = nullptr);
 // Every spring's force summed into ws.force (which holds the node terms already); `keep`: every
 // spring's values kept per spring (the implicit system needs them).
 void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep);
 
-// Elements (element_forces.cc).
-void volume_forces(const Model& m, const State& s, Workspace& ws);
-void shear_forces(const Model& m, const State& s, Workspace& ws);
+// Elements: core/element_terms.h.
 
 // Contact (contact_stage.cc).
 // The node law of probe k at `center` against positions x (every node or the listed ones):
@@ -129,8 +127,7 @@ void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic
 void integrate_implicit(const Model& m, State& s, Workspace& ws);
 // y = A p, the backward Euler system A = M (1 + h mu) - h^2 (df/dx + df/dv / h) at (s.x, s.v) as
 // the Newton iteration builds it (component-major vectors of 3 num_nodes entries, free axes).
-void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p,
-                    double* y);
+void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p, double* y);
 // The guard over every node, or over the listed ones; counts what it finds.
 bool state_ok(const Model& m, State& s);
 bool nodes_ok(const Model& m, State& s, const std::vector<int>& nodes);

@@ -52,12 +52,12 @@ std::string prepare_scene(const BodySpec& spec, const PrepareOptions& opt, Scene
     if (m->options.active_region) {
       if (m->options.integrator == Integrator::kImplicitEuler)
         note(true, "active region ignored: the implicit integrator steps every node");
-      else if (ws.far_every > 0)
-        note(false,
-             format("active region: tolerance %g m; far field one step every %d ticks "
-                    "(measured stability bound %d, far inertia x %.3f); the step below is "
-                    "measured at rest",
-                    m->options.active_tolerance, ws.far_every, ws.measured_every, ws.far_raise));
+      else if (ws.bounds.far_every > 0)
+        note(false, format("active region: tolerance %g m; far field one step every %d ticks "
+                           "(measured stability bound %d, far inertia x %.3f); the step below is "
+                           "measured at rest",
+                           m->options.active_tolerance, ws.bounds.far_every,
+                           ws.bounds.measured_every, ws.bounds.far_raise));
       else
         note(false, format("active region: tolerance %g m; far field frozen",
                            m->options.active_tolerance));

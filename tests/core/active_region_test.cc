@@ -148,12 +148,12 @@ TEST(ActiveRegionTest, MultiRateFarFieldAgreesToOnePercentWithASmallRegion) {
   const Comparison frozen = Compare(full, Bar(true, tol, -1), 600);
   const Model multi = Bar(true, tol, 0);
   const Workspace ws(multi);
-  ASSERT_GT(ws.far_every, 1) << "the far field's stability bound allows no interval";
+  ASSERT_GT(ws.bounds.far_every, 1) << "the far field's stability bound allows no interval";
   const Comparison moving = Compare(full, multi, 600);
   std::printf(
       "frozen: error %.3g %%, awake %.3f; multi-rate (every %d ticks): error %.3g %%, "
       "awake %.3f; far end moved %.3g / %.3g / %.3g um (full / frozen / multi-rate)\n",
-      100 * frozen.error, frozen.awake_fraction, ws.far_every, 100 * moving.error,
+      100 * frozen.error, frozen.awake_fraction, ws.bounds.far_every, 100 * moving.error,
       moving.awake_fraction, 1e6 * moving.far_full, 1e6 * frozen.far_active,
       1e6 * moving.far_active);
   EXPECT_LT(moving.awake_fraction, 0.5);
@@ -175,19 +175,19 @@ TEST(ActiveRegionTest, FarStepIsSpreadOverItsInterval) {
   SideBySide run(full, m);
   const State& s = run.b;
   const Workspace& ws = run.wb;
-  ASSERT_EQ(ws.far_every, 4);
-  const int slack = ws.runs.empty() ? 1 : Workspace::kChunkSprings;
+  ASSERT_EQ(ws.bounds.far_every, 4);
+  const int slack = ws.layout.runs.empty() ? 1 : SpringLayout::kChunkSprings;
   int worst_share = 0, intervals = 0;
   long in_interval = 0, last_far = 0;
   for (int t = 0; t < 600; ++t) {
     run.tick(t);
     // Far springs of this interval (both ends asleep; lattices: springs of chunks holding one).
     long far = 0;
-    if (ws.runs.empty()) {
+    if (ws.layout.runs.empty()) {
       far = static_cast<long>(s.region.slow.size());
     } else {
-      for (size_t c = 0; c < ws.chunks.size(); ++c)
-        if (s.region.chunk_slow[c]) far += ws.chunks[c].k1 - ws.chunks[c].k0;
+      for (size_t c = 0; c < ws.layout.chunks.size(); ++c)
+        if (s.region.chunk_slow[c]) far += ws.layout.chunks[c].k1 - ws.layout.chunks[c].k0;
     }
     ASSERT_GT(far, 0);
     // The region's lists, updated incrementally, match a count from scratch.
@@ -249,7 +249,7 @@ TEST(ActiveRegionTest, FarIntervalBeyondTheStabilityBoundStaysBounded) {
   // Four times the interval the far field's own bound allows: without the raised inertia of the
   // far step this blows up (roll-backs); with it the far field stays bounded.
   const Model probe_model = Bar(true, 2e-4, 0);
-  const int bound = Workspace(probe_model).far_max_every;
+  const int bound = Workspace(probe_model).bounds.far_max_every;
   const Model m = Bar(true, 2e-4, 4 * bound);
   State s = make_state(m);
   Workspace ws(m);
@@ -270,7 +270,7 @@ TEST(ActiveRegionTest, ARegionAsCostlyAsTheWholeBodyStepsTheWholeBodyUntilItShri
   SideBySide run(full, m);
   State& s = run.b;
   Workspace& ws = run.wb;
-  ASSERT_GT(ws.far_every, 0);
+  ASSERT_GT(ws.bounds.far_every, 0);
   int whole = 0;
   for (int t = 0; t < 600; ++t) {
     run.tick(t);

@@ -60,7 +60,7 @@ TEST_P(ImplicitSystemTest, ProductIsTheCentralDifferenceOfTheForces) {
     for (int c = 0; c < 3; ++c) p[c * nn + i] = u(rng) * m.free_axes[i][c];
   detail::system_product(m, s, ws, h, p.data(), y.data());
   for (int k = 0; k < m.num_springs(); ++k)  // the premise: every spring in tension
-    ASSERT_LT(ws.load[k], 0) << "spring " << k << " is not in tension";
+    ASSERT_LT(ws.springs.load[k], 0) << "spring " << k << " is not in tension";
 
   // f at x +- e p with v +- e p / h (the implicit step's v = (x - x0) / h), from rest velocity.
   const double e = 1e-7;  // m

@@ -1,5 +1,7 @@
-// Test meshes built from the box lattice (shared by the core tests).
+// Test meshes and bodies built from the box lattice (shared by the core tests).
 #pragma once
+
+#include <gtest/gtest.h>
 
 #include <array>
 #include <utility>
@@ -23,6 +25,20 @@ inline Mesh Tetrahedralised(const Mesh& hexes) {
       t.tetrahedra.push_back(e);
     }
   return t;
+}
+
+// A box lattice of cells^3 cubes of side `cell` (m), one spring group of `card`, density
+// 1000 kg/m^3, mass damping 3 /s, gravity along -z.
+inline Model Lattice(const SpringCard& card, std::array<int, 3> cells, double cell) {
+  BodySpec b;
+  b.mesh = make_box_lattice(Vec3(cell * cells[0], cell * cells[1], cell * cells[2]), cells);
+  b.density = 1000;
+  b.groups.push_back({"tissue", card, kAllFamilies, {}, Vec3::Zero(), 10});
+  b.options.mass_damping = 3;
+  b.options.gravity = Vec3(0, 0, -9.81);
+  Model m;
+  EXPECT_EQ(build_model(b, &m), "");
+  return m;
 }
 
 }  // namespace conica::testing_meshes

@@ -260,18 +260,19 @@ TEST_F(LoopTest, DampingSetBetweenTicksRebuildsWhatTheStepDerivedFromIt) {
   spec.options.active_region = true;
   spec.options.active_far_every = 0;
   Start({}, spec);
-  const double gamma_before = loop_->scene()->workspace->far_gamma;
+  const double gamma_before = loop_->scene()->workspace->bounds.far_gamma;
   transport_.send_control(At(3.5), 8, 1, SetParameter{Parameter::kDamping, 400});
   TickTo(6);
   const Scene& scene = *loop_->scene();
   ASSERT_EQ(scene.model->options.mass_damping, 400);
   const Workspace fresh(*scene.model);  // what a scene loaded with this damping would step with
-  EXPECT_EQ(scene.workspace->far_gamma, fresh.far_gamma);
-  EXPECT_EQ(scene.workspace->far_every, fresh.far_every);
-  EXPECT_EQ(scene.workspace->far_raise, fresh.far_raise);
-  EXPECT_EQ(scene.workspace->measured_every, fresh.measured_every);
-  EXPECT_GT(fresh.far_gamma, gamma_before + 300) << "the far field's damping bound must follow";
-  EXPECT_LT(scene.state.region.far_phase, std::max(1, fresh.far_every));
+  EXPECT_EQ(scene.workspace->bounds.far_gamma, fresh.bounds.far_gamma);
+  EXPECT_EQ(scene.workspace->bounds.far_every, fresh.bounds.far_every);
+  EXPECT_EQ(scene.workspace->bounds.far_raise, fresh.bounds.far_raise);
+  EXPECT_EQ(scene.workspace->bounds.measured_every, fresh.bounds.measured_every);
+  EXPECT_GT(fresh.bounds.far_gamma, gamma_before + 300)
+      << "the far field's damping bound must follow";
+  EXPECT_LT(scene.state.region.far_phase, std::max(1, fresh.bounds.far_every));
 }
 
 TEST_F(LoopTest, BadMessagesAreAnsweredCountedAndChangeNothing) {

@@ -119,12 +119,12 @@ void register_active_region(CLI::App& app, Runner* run) {
           r.cost_sum += s.region.cost;
         }
         r.rollbacks = s.counters.rollbacks;
-        r.far_every = ws.far_every;
-        r.far_max_every = ws.far_max_every;
-        r.measured_every = ws.measured_every;
-        r.far_lambda = ws.far_lambda;
-        r.damping_ratio = ws.far_gamma;
-        r.far_raise = ws.far_raise;
+        r.far_every = ws.bounds.far_every;
+        r.far_max_every = ws.bounds.far_max_every;
+        r.measured_every = ws.bounds.measured_every;
+        r.far_lambda = ws.bounds.far_lambda;
+        r.damping_ratio = ws.bounds.far_gamma;
+        r.far_raise = ws.bounds.far_raise;
         return r;
       };
       const Run a = drive(full), b = drive(active);

@@ -167,7 +167,7 @@ Outcome one_spring_bottoming(double cap, Integrator integ, double load_ratio, do
   Workspace ws(m);
   Outcome o;
   double lmin = l0;
-  const double stop = std::max(ws.min_length[0], m.options.min_length_fraction * l0);
+  const double stop = std::max(ws.layout.min_length[0], m.options.min_length_fraction * l0);
   for (int k = 0; k < 800; ++k) {
     const double w = ramp > 0 ? std::min(1.0, k * m.options.dt / ramp) : 1.0;
     m.options.gravity = Vec3(0, 0, -w * load_ratio * law.solid_load() / mass);

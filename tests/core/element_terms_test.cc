@@ -1,0 +1,257 @@
+// Every term of ElementTerms (core/element_terms.h) against its own energy, one term at a time,
+// on tetrahedra and on hexahedra (with the Gauss-point spread):
+//   - its forces are minus a central difference of its energy;
+//   - its system block is symmetric, positive semi-definite and blind to translations;
+//   - the volume term's block is the exact Hessian at rest (a central difference of its forces),
+//     and the shear term's quadratic form is the exact second variation mu gamma^2 V of a simple
+//     shear (the analytic value, and a second difference of its energy);
+//   - its diagonal blocks are the node blocks of its product.
+#include "core/element_terms.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/body.h"
+#include "core/step.h"
+#include "lattice_meshes.h"
+
+namespace conica {
+namespace {
+
+using testing_meshes::Tetrahedralised;
+
+struct Body {
+  Model m;
+  std::string name;
+};
+
+// A 20 x 30 x 20 mm box lattice with every element term (hexahedra: with the spread), or its
+// tetrahedra; soft springs that play no part here.
+Body ElementBody(bool tets) {
+  BodySpec b;
+  b.mesh = make_box_lattice(Vec3(0.02, 0.03, 0.02), {2, 3, 2});
+  if (tets) b.mesh = Tetrahedralised(b.mesh);
+  SpringCard c;
+  c.law = LawKind::kHooke;
+  c.hooke_k = 5;
+  c.hooke_length = 0.01;
+  b.groups.push_back({"all", c, kAllFamilies, {}, Vec3::Zero(), 10});
+  b.bulk_modulus = 2e5;
+  b.spread_modulus = tets ? 0 : 1.5e5;
+  b.shear_modulus = 4e4;
+  Body body;
+  EXPECT_EQ(build_model(b, &body.m), "");
+  body.name = tets ? "tetrahedra" : "hexahedra";
+  return body;
+}
+
+std::vector<Vec3> Jittered(const Model& m, double amplitude, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-amplitude, amplitude);
+  std::vector<Vec3> x = m.rest;
+  for (Vec3& p : x) p += Vec3(u(rng), u(rng), u(rng));
+  return x;
+}
+
+template <typename Term>
+std::vector<Vec3> Forces(const Model& m, const std::vector<Vec3>& x, ElementScratch& E) {
+  std::vector<Vec3> f(m.num_nodes(), Vec3::Zero());
+  Term::add_forces(m, x, E, f);
+  return f;
+}
+
+// y = (the term's h^2 H) p over the body, p and y per node.
+template <typename Term>
+std::vector<Vec3> Product(const Model& m, const ElementScratch& E, double h2,
+                          const std::vector<Vec3>& p) {
+  std::vector<Vec3> y(m.num_nodes(), Vec3::Zero());
+  for_each_element(m, [&](auto n, int e, const auto& nodes) {
+    constexpr int N = decltype(n)::value;
+    double P[3][N], Y[3][N] = {};
+    for (int a = 0; a < N; ++a)
+      for (int c = 0; c < 3; ++c) P[c][a] = p[nodes[a]][c];
+    Term::template times<N>(m, E, h2, e, P, Y);
+    for (int a = 0; a < N; ++a)
+      for (int c = 0; c < 3; ++c) y[nodes[a]][c] += Y[c][a];
+  });
+  return y;
+}
+
+double Dot(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+  double s = 0;
+  for (size_t i = 0; i < a.size(); ++i) s += a[i].dot(b[i]);
+  return s;
+}
+
+template <typename Term>
+void CheckTerm(const Body& body) {
+  const Model& m = body.m;
+  SCOPED_TRACE(body.name);
+  ASSERT_TRUE(Term::active(m));
+  Workspace ws(m);
+  ElementScratch& E = ws.elements;
+  const int nn = m.num_nodes();
+  const double h2 = 1e-6;  // (1 ms)^2
+
+  // Forces are minus the gradient of the energy.
+  const std::vector<Vec3> x = Jittered(m, 1e-3, 3);
+  const std::vector<Vec3> f = Forces<Term>(m, x, E);
+  const double eps = 1e-8;
+  double fmax = 0;
+  for (const Vec3& v : f) fmax = std::max(fmax, v.cwiseAbs().maxCoeff());
+  ASSERT_GT(fmax, 0);
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) {
+      std::vector<Vec3> xp = x, xm = x;
+      xp[i][c] += eps;
+      xm[i][c] -= eps;
+      const double fd = -(Term::energy(m, xp) - Term::energy(m, xm)) / (2 * eps);
+      EXPECT_NEAR(f[i][c], fd, 1e-6 * fmax) << "node " << i << " axis " << c;
+    }
+
+  // The block at the jittered state (E holds what add_forces kept): symmetric, PSD, no
+  // translation stiffness.
+  Term::prepare_system(m, h2, E);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  double ref = 0;  // N, the largest entry of a product with a random p
+  for (int trial = 0; trial < 4; ++trial) {
+    std::vector<Vec3> p(nn), q(nn);
+    for (int i = 0; i < nn; ++i) {
+      p[i] = Vec3(u(rng), u(rng), u(rng));
+      q[i] = Vec3(u(rng), u(rng), u(rng));
+    }
+    const std::vector<Vec3> hp = Product<Term>(m, E, h2, p), hq = Product<Term>(m, E, h2, q);
+    const double scale = std::sqrt(Dot(hp, hp) * Dot(q, q)) + 1e-300;
+    for (const Vec3& v : hp) ref = std::max(ref, v.cwiseAbs().maxCoeff());
+    EXPECT_NEAR(Dot(q, hp), Dot(p, hq), 1e-12 * scale) << "symmetry, trial " << trial;
+    EXPECT_GE(Dot(p, hp), -1e-12 * scale) << "semi-definite, trial " << trial;
+  }
+  for (int c = 0; c < 3; ++c) {
+    std::vector<Vec3> t(nn, Vec3::Unit(c));
+    const std::vector<Vec3> ht = Product<Term>(m, E, h2, t);
+    double largest = 0;
+    for (const Vec3& v : ht) largest = std::max(largest, v.norm());
+    EXPECT_LT(largest, 1e-12 * ref) << "translation along axis " << c;
+  }
+
+  // The diagonal blocks are the node blocks of the product: column (i, c) of h^2 H read at node i.
+  std::vector<double> d(6 * nn, 0.0);
+  for_each_element(m, [&](auto n, int e, const auto& nodes) {
+    constexpr int N = decltype(n)::value;
+    Term::template diagonal<N>(m, E, h2, e, nodes, nn, d.data());
+  });
+  static constexpr int kEntry[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
+  for (int i = 0; i < nn; i += 5)
+    for (int c = 0; c < 3; ++c) {
+      std::vector<Vec3> unit(nn, Vec3::Zero());
+      unit[i][c] = 1;
+      const Vec3 col = Product<Term>(m, E, h2, unit)[i];
+      for (int r = 0; r < 3; ++r)
+        EXPECT_NEAR(d[kEntry[r][c] * nn + i], col[r], 1e-12 * ref)
+            << "node " << i << " block (" << r << ", " << c << ")";
+    }
+}
+
+TEST(ElementTermsTest, VolumeTermForcesBlockAndDiagonalAgreeWithItsEnergy) {
+  for (bool tets : {true, false}) CheckTerm<VolumeTerm>(ElementBody(tets));
+}
+
+TEST(ElementTermsTest, ShearTermForcesBlockAndDiagonalAgreeWithItsEnergy) {
+  for (bool tets : {true, false}) CheckTerm<ShearTerm>(ElementBody(tets));
+}
+
+TEST(ElementTermsTest, VolumeBlockIsTheExactHessianAtRest) {
+  // At rest J = 1 (and every Gauss point's share is its rest share), so the dropped term
+  // kappa (J - 1) d2V/dx2 vanishes: h^2 H p = -h^2 (f(x + e p) - f(x - e p)) / (2 e).
+  for (bool tets : {true, false}) {
+    const Body body = ElementBody(tets);
+    const Model& m = body.m;
+    SCOPED_TRACE(body.name);
+    Workspace ws(m);
+    const double h2 = 1e-6, eps = 1e-7;
+    std::vector<Vec3> p = Jittered(m, 1.0, 5);
+    for (int i = 0; i < m.num_nodes(); ++i) p[i] -= m.rest[i];
+    Forces<VolumeTerm>(m, m.rest, ws.elements);  // keeps the gradients at rest
+    const std::vector<Vec3> hp = Product<VolumeTerm>(m, ws.elements, h2, p);
+    std::vector<Vec3> xp = m.rest, xm = m.rest;
+    for (int i = 0; i < m.num_nodes(); ++i) {
+      xp[i] += eps * p[i];
+      xm[i] -= eps * p[i];
+    }
+    ElementScratch scratch = ws.elements;
+    const std::vector<Vec3> fp = Forces<VolumeTerm>(m, xp, scratch);
+    const std::vector<Vec3> fm = Forces<VolumeTerm>(m, xm, scratch);
+    double largest = 0;
+    for (const Vec3& v : hp) largest = std::max(largest, v.cwiseAbs().maxCoeff());
+    ASSERT_GT(largest, 0);
+    for (int i = 0; i < m.num_nodes(); ++i)
+      for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(hp[i][c], -h2 * (fp[i][c] - fm[i][c]) / (2 * eps), 1e-6 * largest)
+            << "node " << i << " axis " << c;
+  }
+}
+
+TEST(ElementTermsTest, ShearBlockGivesTheSecondVariationOfASimpleShear) {
+  // u = gamma y e_x from rest: F = I + gamma e_x e_y^T, J = 1, W = (mu / 2) gamma^2 per unit
+  // volume exactly, so d2W/dgamma2 = mu V. The Laplacian block's quadratic form p^T H p with
+  // p = y e_x must equal it (and a second difference of the term's energy).
+  for (bool tets : {true, false}) {
+    const Body body = ElementBody(tets);
+    const Model& m = body.m;
+    SCOPED_TRACE(body.name);
+    Workspace ws(m);
+    const double h2 = 1.0;
+    std::vector<Vec3> p(m.num_nodes());
+    for (int i = 0; i < m.num_nodes(); ++i) p[i] = Vec3(m.rest[i].y(), 0, 0);
+    Forces<ShearTerm>(m, m.rest, ws.elements);
+    ShearTerm::prepare_system(m, h2, ws.elements);
+    const double quadratic = Dot(p, Product<ShearTerm>(m, ws.elements, h2, p));
+    const double volume = 0.02 * 0.03 * 0.02;
+    EXPECT_NEAR(quadratic, m.shear_modulus * volume, 1e-9 * m.shear_modulus * volume);
+    const double g = 1e-4;
+    std::vector<Vec3> xp = m.rest, xm = m.rest;
+    for (int i = 0; i < m.num_nodes(); ++i) {
+      xp[i] += g * p[i];
+      xm[i] -= g * p[i];
+    }
+    const double second =
+        (ShearTerm::energy(m, xp) - 2 * ShearTerm::energy(m, m.rest) + ShearTerm::energy(m, xm)) /
+        (g * g);
+    EXPECT_NEAR(quadratic, second, 1e-5 * quadratic);
+  }
+}
+
+TEST(ElementTermsTest, TheListHoldsEveryTermAndSkipsAbsentOnes) {
+  // for_each_term visits the terms the model has, in the list's order.
+  BodySpec b;
+  b.mesh = make_box_lattice(Vec3(0.01, 0.01, 0.01), {1, 1, 1});
+  SpringCard c;
+  c.law = LawKind::kHooke;
+  c.hooke_k = 5;
+  c.hooke_length = 0.01;
+  b.groups.push_back({"all", c, kAllFamilies, {}, Vec3::Zero(), 10});
+  b.shear_modulus = 1e4;
+  Model m;
+  ASSERT_EQ(build_model(b, &m), "");
+  std::vector<std::string> seen;
+  for_each_term(m, [&](auto term) {
+    seen.push_back(std::is_same_v<decltype(term), VolumeTerm> ? "volume" : "shear");
+  });
+  EXPECT_EQ(seen, std::vector<std::string>{"shear"});
+  std::vector<std::string> listed, reversed;
+  auto name = [](auto term) {
+    return std::is_same_v<decltype(term), VolumeTerm> ? "volume" : "shear";
+  };
+  ElementTerms::for_each([&](auto term) { listed.push_back(name(term)); });
+  ElementTerms::for_each_reversed([&](auto term) { reversed.push_back(name(term)); });
+  EXPECT_EQ(listed, (std::vector<std::string>{"volume", "shear"}));
+  EXPECT_EQ(reversed, (std::vector<std::string>{"shear", "volume"}));
+}
+
+}  // namespace
+}  // namespace conica
