@@ -3,7 +3,7 @@
 # munge, installed by scripts/setup.sh) runs a 4-shard library sweep as a job array
 # (calibrate-library.sbatch) and its merge (merge-library.sbatch); the merged library must equal
 # a single-process run of the same sweep byte for byte. A small, fast setting (four recipes,
-# cell surrogate only, 20 points) keeps it to seconds. Needs root (the daemons). Run from
+# cell surrogate only, 12 points, one Poisson ratio) keeps it to seconds. Needs root (the daemons). Run from
 # anywhere: scripts/slurm/ci-cluster.sh [BUILD_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -69,8 +69,8 @@ done
 sinfo -h -o "%P %T %c" || { cat "$work"/log/*; exit 1; }
 
 args=(--scene "$PWD/configs/phantom-cylinder.pbtxt" --data-dir "$data"
-      --recipes EF10_0T,EF30_0T,EF30_50T,EF50_50T --full-iterations -1 --points 20
-      --poisson-grid 2 --threads 1)
+      --recipes EF10_0T,EF30_0T,EF30_50T,EF50_50T --full-iterations -1 --points 12
+      --poisson-grid 1 --threads 1)
 # The sweep on the cluster: 4 array tasks, then the merge once they all succeeded.
 cd "$work"
 export CONICA_LAB=$lab
@@ -86,5 +86,6 @@ cat "$work"/conica-library-*.out
 [[ -f $work/cluster/index.csv ]] || { echo "ci-cluster: the merge wrote no index"; cat "$work"/log/*; exit 1; }
 # The same sweep in one process.
 "$lab" library "${args[@]}" --out "$work/single" >/dev/null
+"$lab" library "${args[@]}" --out "$work/single" --merge >/dev/null
 diff -r -x logs "$work/single" "$work/cluster"
 echo "ci-cluster: 4-shard Slurm library equals the single-process one ($(ls "$work/cluster"/*.card | wc -l) cards)"

@@ -87,10 +87,11 @@ std::string convert_card(const v1::SpringCard& c, SpringCard* out) {
 std::string find_material(const std::string& name, const std::string& scene_dir,
                           std::string* error) {
   namespace fs = std::filesystem;
-  const bool plain =
-      !name.empty() && name.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
-                                              "0123456789_.-") == std::string::npos &&
-      name[0] != '.';
+  const bool plain = !name.empty() &&
+                     name.find_first_not_of(
+                         "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                         "0123456789_.-") == std::string::npos &&
+                     name[0] != '.';
   if (!plain) {
     *error = "material \"" + name + "\" is not a plain name (letters, digits, _ . -)";
     return {};

@@ -34,7 +34,7 @@ struct SceneFile {
   std::string path;       // as given
   std::string mesh_path;  // resolved mesh file, empty for lattices
   SceneGeometry geometry;
-  BodySpec spec;  // geometry in metres, cards, selectors, solver options
+  BodySpec spec;              // geometry in metres, cards, selectors, solver options
   std::string material;       // the `material` name, empty when the scene gives its groups
   std::string material_path;  // the card file it was read from
 };

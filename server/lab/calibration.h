@@ -208,7 +208,8 @@ struct FitOptions {
   double static_stroke_margin = 1.05;  // the cylinder's rim cells strain more than the body
   double static_tolerance = 1e-5;
   int stroke_raises = 1;       // kStatic: a full body that collapses before the end of the travel
-  double stroke_raise = 1.08;  // raises the stroke bound by this factor, at most this often      // relative plate force change ending a static solve
+  double stroke_raise = 1.08;  // raises the stroke bound by this factor, at most this often      //
+                               // relative plate force change ending a static solve
   ShapeBounds bounds;
   std::function<void(const std::string&)> progress;  // one line per stage / iteration
 };

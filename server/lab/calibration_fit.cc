@@ -228,8 +228,7 @@ FullRun Evaluator::full_at(const std::vector<ConicalCard>& cards, double ratio) 
   CompressionStats st;
   const Curve c =
       p_.options.method == FitMethod::kStatic
-          ? static_compression_curve(m, p_.options.max_strain, n, &st,
-                                     p_.options.static_tolerance)
+          ? static_compression_curve(m, p_.options.max_strain, n, &st, p_.options.static_tolerance)
           : compression_curve(m, p_.options.rate, p_.options.max_strain, n, &st);
   for (int k = 0; k < n; ++k) run.force[k] = c[k + 1].force;
   run.spread = st.half_width > 0 ? st.layer_spread / st.half_width : 0;

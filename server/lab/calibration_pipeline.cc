@@ -111,8 +111,7 @@ std::vector<double> stroke_bounds(int K, const FitOptions& o) {
   for (int c = 0; c < K; ++c) {
     const int f = card_families(K)[c];
     const double share = (f & kEdge) ? 1.0 : (f & kFaceDiagonal) ? 0.5 : 1.0 / 3;
-    const double margin =
-        o.method == FitMethod::kStatic ? o.static_stroke_margin : o.stroke_margin;
+    const double margin = o.method == FitMethod::kStatic ? o.static_stroke_margin : o.stroke_margin;
     smin[c] = std::min(B.stroke_max * 0.99, std::max(B.stroke_min, margin * share * o.max_strain));
   }
   return smin;

@@ -52,8 +52,9 @@ SurrogateOptimum surrogate_at(Evaluator& ev) {
   const Layout layout = p.one_card(p.options.fit_precompression);
   SurrogateOptimum best{ev.nu, found.front().shapes, std::numeric_limits<double>::infinity()};
   for (const Candidate& c : found) {
-    const std::vector<CardShape> sh = l1_fit(
-        p, layout, c.shapes, [&ev](const std::vector<ConicalCard>& cards) { return ev.surrogate(cards); });
+    const std::vector<CardShape> sh =
+        l1_fit(p, layout, c.shapes,
+               [&ev](const std::vector<ConicalCard>& cards) { return ev.surrogate(cards); });
     const double e = ev.surrogate_error(sh);
     if (e < best.error) best = {ev.nu, sh, e};
   }
@@ -138,10 +139,9 @@ void static_fit(Evaluator& ev, FitResult* r) {
     say(o, "surrogate at Poisson " + fmt(nu, 3) + ": average relative error " +
                fmt(100 * optima.back().error, 4) + " %: " + shapes_text(optima.back().shapes));
   }
-  std::stable_sort(optima.begin(), optima.end(),
-                   [](const SurrogateOptimum& a, const SurrogateOptimum& b) {
-                     return a.error < b.error;
-                   });
+  std::stable_sort(
+      optima.begin(), optima.end(),
+      [](const SurrogateOptimum& a, const SurrogateOptimum& b) { return a.error < b.error; });
   ev.nu = optima.front().nu;
   describe(ev, optima.front().shapes, r);
   r->surrogate_error_before_refine = r->surrogate_error;

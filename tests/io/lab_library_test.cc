@@ -27,8 +27,8 @@ const std::string kFast =
     " --full-iterations -1 --points 12 --poisson-grid 1 --threads 1 --recipes EF30_50T,EF50_50T";
 
 fs::path Temp(const std::string& name) {
-  const fs::path p = fs::path(::testing::TempDir()) /
-                     ("conica_library_" + std::to_string(getpid()) + "_" + name);
+  const fs::path p =
+      fs::path(::testing::TempDir()) / ("conica_library_" + std::to_string(getpid()) + "_" + name);
   fs::remove_all(p);
   return p;
 }

@@ -221,8 +221,7 @@ TEST(CompressionTest, StaticCompressionMatchesTheCellAndASlowDynamicTest) {
   Model damped_body;
   ASSERT_EQ(build_model(damped, &damped_body), "");
   const Curve quasi_damped = static_compression_curve(damped_body, 0.3, 10);
-  for (int i = 1; i <= 10; ++i)
-    EXPECT_NEAR(quasi_damped[i].force / quasi[i].force, 1.0, 1e-9) << i;
+  for (int i = 1; i <= 10; ++i) EXPECT_NEAR(quasi_damped[i].force / quasi[i].force, 1.0, 1e-9) << i;
 }
 
 TEST(CompressionTest, AddsATopPlateOnlyWhenNone) {

@@ -65,8 +65,7 @@ void register_compress(CLI::App& app, Runner* run) {
       const Curve c =
           o->quasi_static
               ? static_compression_curve(m, o->to_strain, o->samples, &st, o->tolerance)
-              : compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples,
-                                  &st);
+              : compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples, &st);
       std::string csv = "displacement_mm,force_N\n";
       char line[96];
       for (const CurvePoint& p : c) {
@@ -85,9 +84,10 @@ void register_compress(CLI::App& app, Runner* run) {
                    "penalty %.4g N/m, max penetration %.3g mm, rollbacks %llu, force at %.4g mm: "
                    "%.6g N, step time %.4g us, layer spread %.3g %% of the half width\n",
                    o->scene.c_str(), plate_height(m) * 1e3, st.steps,
-                   o->quasi_static ? "static (implicit)" : integrator_name(m.options.integrator), st.dt * 1e3, st.plate_stiffness,
-                   st.max_penetration * 1e3, static_cast<unsigned long long>(st.rollbacks),
-                   c.back().displacement * 1e3, c.back().force, st.step_seconds * 1e6,
+                   o->quasi_static ? "static (implicit)" : integrator_name(m.options.integrator),
+                   st.dt * 1e3, st.plate_stiffness, st.max_penetration * 1e3,
+                   static_cast<unsigned long long>(st.rollbacks), c.back().displacement * 1e3,
+                   c.back().force, st.step_seconds * 1e6,
                    st.half_width > 0 ? 100 * st.layer_spread / st.half_width : 0.0);
       if (!o->plot.empty()) {
         std::string data = o->out;

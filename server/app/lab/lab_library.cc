@@ -163,8 +163,9 @@ void register_library(CLI::App& app, Runner* run) {
   o->fit.space_mapping = 2;
   o->fit.verify_candidates = 2;
   CLI::App* cmd = app.add_subcommand(
-      "library", "Calibrate every recipe of a database of compression tests into a material "
-                 "library (OUT/<recipe>.card), sharded and resumable");
+      "library",
+      "Calibrate every recipe of a database of compression tests into a material "
+      "library (OUT/<recipe>.card), sharded and resumable");
   cmd->add_option("--scene", o->scene, "calibration scene (.pbtxt)")->required();
   cmd->add_option("--data-dir", o->data_dir, "database: one folder of CSV tests per recipe")
       ->required();
@@ -210,8 +211,8 @@ void register_library(CLI::App& app, Runner* run) {
       if (!o->only.empty()) {
         std::vector<Recipe> kept;
         for (const std::string& name : o->only) {
-          auto it = std::find_if(all.begin(), all.end(),
-                                 [&](const Recipe& r) { return r.name == name; });
+          auto it =
+              std::find_if(all.begin(), all.end(), [&](const Recipe& r) { return r.name == name; });
           if (it == all.end()) return fail("--recipes: no recipe " + name + " in " + o->data_dir);
           kept.push_back(*it);
         }
@@ -226,12 +227,13 @@ void register_library(CLI::App& app, Runner* run) {
       FitOptions fo = o->fit;
       fo.method = o->method == "static" ? FitMethod::kStatic : FitMethod::kGrid;
       // The key: program, scene, options and every data file's bytes.
-      const std::string options =
-          "method=" + o->method + " max_strain=" + g(fo.max_strain, 17) +
-          " skip_strain=" + g(fo.skip_strain, 17) + " points=" + std::to_string(fo.points) +
-          " poisson_grid=" + std::to_string(fo.poisson_grid) + " poisson_min=" +
-          g(fo.poisson_min, 17) + " space_mapping=" + std::to_string(fo.space_mapping) +
-          " full_iterations=" + std::to_string(fo.full_iterations);
+      const std::string options = "method=" + o->method + " max_strain=" + g(fo.max_strain, 17) +
+                                  " skip_strain=" + g(fo.skip_strain, 17) +
+                                  " points=" + std::to_string(fo.points) +
+                                  " poisson_grid=" + std::to_string(fo.poisson_grid) +
+                                  " poisson_min=" + g(fo.poisson_min, 17) +
+                                  " space_mapping=" + std::to_string(fo.space_mapping) +
+                                  " full_iterations=" + std::to_string(fo.full_iterations);
       struct Unit {
         Recipe recipe;
         std::string key, provenance;
@@ -240,8 +242,8 @@ void register_library(CLI::App& app, Runner* run) {
       std::vector<Unit> units;
       for (const Recipe& r : all) {
         Unit u{r, {}, {}, {}};
-        std::uint64_t h = fnv1a(std::string("conica ") + CONICA_VERSION + "\n" + scene_text +
-                                "\n" + options + "\n");
+        std::uint64_t h = fnv1a(std::string("conica ") + CONICA_VERSION + "\n" + scene_text + "\n" +
+                                options + "\n");
         for (const fs::path& f : r.files) {
           u.texts.push_back(read_all(f, &ok));
           if (!ok) return fail(f.string() + ": cannot read");
@@ -260,8 +262,9 @@ void register_library(CLI::App& app, Runner* run) {
 
       if (o->merge) {
         std::string missing;
-        std::string index = "recipe,error_percent,poisson,card_modulus_Pa,taper,stroke,"
-                            "precompression,bulk_modulus_Pa,shear_modulus_Pa,tests\n";
+        std::string index =
+            "recipe,error_percent,poisson,card_modulus_Pa,taper,stroke,"
+            "precompression,bulk_modulus_Pa,shear_modulus_Pa,tests\n";
         for (const Unit& u : units) {
           const fs::path card = out / (u.recipe.name + ".card");
           if (key_of(card) != u.key) {
@@ -272,9 +275,9 @@ void register_library(CLI::App& app, Runner* run) {
                    std::to_string(u.recipe.files.size()) + "\n";
         }
         if (!missing.empty())
-          return fail("merge: no card with the current key for " + missing +
-                      " (run their shards first)",
-                      3);
+          return fail(
+              "merge: no card with the current key for " + missing + " (run their shards first)",
+              3);
         if (std::string w = write_atomic(out / "index.csv", index); !w.empty()) return fail(w, 1);
         std::printf("merged %zu recipes into %s\n", units.size(),
                     (out / "index.csv").string().c_str());
@@ -294,8 +297,7 @@ void register_library(CLI::App& app, Runner* run) {
         const fs::path card = out / (name + ".card");
         ++done;
         if (!o->force && key_of(card) == u->key) {
-          std::printf("[%d/%zu] %s: card up to date, skipped\n", done, mine.size(),
-                      name.c_str());
+          std::printf("[%d/%zu] %s: card up to date, skipped\n", done, mine.size(), name.c_str());
           std::fflush(stdout);
           continue;
         }
@@ -334,8 +336,8 @@ void register_library(CLI::App& app, Runner* run) {
                       4);
         const std::string which = r.full_error >= 0 ? "full body" : "cell surrogate";
         std::string head = "# conica material " + name + "\n";
-        head += "# program: conica " CONICA_VERSION ", conica-lab library --method " +
-                o->method + "\n";
+        head +=
+            "# program: conica " CONICA_VERSION ", conica-lab library --method " + o->method + "\n";
         head += "# options: " + options + "\n";
         head += "# scene: " + scene.value().name + " (fnv1a-64 " + hex(fnv1a(scene_text)) + ")\n";
         head += "# database: " + std::to_string(u->recipe.files.size()) +
@@ -344,12 +346,11 @@ void register_library(CLI::App& app, Runner* run) {
                 " engineering strain\n";
         head += "# error: " + g(100 * error, 4) + " % mean relative (" + which + ")\n";
         head += "# card: E_c " + g(r.shape.modulus) + " Pa, taper " + g(r.shape.taper) +
-                ", stroke " + g(r.shape.stroke) + ", pre-compression " +
-                g(r.shape.precompression) + " S; body Poisson " + g(r.poisson, 4) + "\n";
-        head += "# index: " + g(100 * error, 4) + "," + g(r.poisson, 4) + "," +
-                g(r.shape.modulus) + "," + g(r.shape.taper) + "," + g(r.shape.stroke) + "," +
-                g(r.shape.precompression) + "," + g(r.bulk_modulus) + "," +
-                g(r.shear_modulus) + "\n";
+                ", stroke " + g(r.shape.stroke) + ", pre-compression " + g(r.shape.precompression) +
+                " S; body Poisson " + g(r.poisson, 4) + "\n";
+        head += "# index: " + g(100 * error, 4) + "," + g(r.poisson, 4) + "," + g(r.shape.modulus) +
+                "," + g(r.shape.taper) + "," + g(r.shape.stroke) + "," + g(r.shape.precompression) +
+                "," + g(r.bulk_modulus) + "," + g(r.shear_modulus) + "\n";
         head += "# key: " + u->key + "\n";
         BodySpec material;
         material.bulk_modulus = r.bulk_modulus;
@@ -360,7 +361,8 @@ void register_library(CLI::App& app, Runner* run) {
         const std::string text = head + io::material_text(material);
         // The card must load as a scene's material before it is written.
         if (auto back = io::parse_scene("cylinder { radius: 0.025 height: 0.03 cells_across: 2 "
-                                        "cells_high: 2 }\ndensity: 1000\n" + text,
+                                        "cells_high: 2 }\ndensity: 1000\n" +
+                                            text,
                                         name + ".card", ".");
             !back)
           return fail(name + ": the fitted card does not load: " + back.error(), 1);
