@@ -13,6 +13,8 @@ PACKAGES=(
   calculix-ccx  # conica-lab fem-reference: the continuum reference (docs/validation.md)
   python3-zmq python3-protobuf python3-matplotlib python3-numpy python3-websockets python3-meshio
   python3-venv python3-pip python3-setuptools python3-wheel python3-pytest
+  # the one-node Slurm cluster of the library sweep's CI step (scripts/slurm/ci-cluster.sh)
+  slurm-wlm munge
   # conica-ros (clients/ros): ROS 1 from Debian, rospy and rosmaster and the message packages
   python3-rospy python3-rosmaster python3-geometry-msgs python3-std-msgs python3-visualization-msgs
 )

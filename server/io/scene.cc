@@ -4,6 +4,7 @@
 #include <google/protobuf/text_format.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -83,6 +84,39 @@ std::string convert_card(const v1::SpringCard& c, SpringCard* out) {
 
 }  // namespace
 
+std::string find_material(const std::string& name, const std::string& scene_dir,
+                          std::string* error) {
+  namespace fs = std::filesystem;
+  const bool plain = !name.empty() &&
+                     name.find_first_not_of(
+                         "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                         "0123456789_.-") == std::string::npos &&
+                     name[0] != '.';
+  if (!plain) {
+    *error = "material \"" + name + "\" is not a plain name (letters, digits, _ . -)";
+    return {};
+  }
+  std::vector<fs::path> dirs{fs::path(scene_dir.empty() ? "." : scene_dir) / "materials"};
+  if (const char* env = std::getenv("CONICA_MATERIAL_PATH")) {
+    std::string list = env;
+    for (size_t a = 0; a <= list.size();) {
+      const size_t b = std::min(list.find(':', a), list.size());
+      if (b > a) dirs.emplace_back(list.substr(a, b - a));
+      a = b + 1;
+    }
+  }
+  std::string looked;
+  for (const fs::path& d : dirs) {
+    const fs::path f = d / (name + ".card");
+    std::error_code ec;
+    if (fs::is_regular_file(f, ec)) return f.string();
+    looked += (looked.empty() ? "" : ", ") + f.string();
+  }
+  *error = "material \"" + name + "\": no card file (looked for " + looked +
+           "; CONICA_MATERIAL_PATH adds folders)";
+  return {};
+}
+
 Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
                               const std::string& base_dir) {
   v1::Scene scene;
@@ -96,6 +130,38 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   }
   const Locator loc{name, tree};
   SceneFile out;
+  if (!scene.material().empty()) {
+    if (scene.group_size() > 0 || scene.bulk_modulus() != 0 || scene.spread_modulus() != 0 ||
+        scene.shear_modulus() != 0)
+      return Error{loc.at("material") +
+                   "a scene with a material gives no group, bulk_modulus, spread_modulus or "
+                   "shear_modulus of its own (the card has them)"};
+    std::string e;
+    const std::string path = find_material(scene.material(), base_dir, &e);
+    if (path.empty()) return Error{loc.at("material") + e};
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    v1::Scene card;
+    pb::TextFormat::Parser card_parser;
+    FirstError card_errors;
+    card_parser.RecordErrorsTo(&card_errors);
+    if (!in || !card_parser.ParseFromString(text.str(), &card))
+      return Error{loc.at("material") + "material \"" + scene.material() + "\": " + path + ":" +
+                   (card_errors.message().empty() ? " cannot read" : card_errors.message())};
+    if (card.group_size() == 0 || card.has_lattice() || card.has_cylinder() || card.has_mesh() ||
+        card.fixed_size() > 0 || card.probe_size() > 0 || card.plate_size() > 0 ||
+        card.has_solver() || !card.material().empty())
+      return Error{loc.at("material") + "material \"" + scene.material() + "\": " + path +
+                   ": a material card holds groups and bulk_modulus, spread_modulus, "
+                   "shear_modulus only (and at least one group)"};
+    scene.set_bulk_modulus(card.bulk_modulus());
+    scene.set_spread_modulus(card.spread_modulus());
+    scene.set_shear_modulus(card.shear_modulus());
+    *scene.mutable_group() = card.group();
+    out.material = scene.material();
+    out.material_path = path;
+  }
   out.name = scene.name();
   out.description = scene.description();
   out.path = name;

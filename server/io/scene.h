@@ -34,8 +34,16 @@ struct SceneFile {
   std::string path;       // as given
   std::string mesh_path;  // resolved mesh file, empty for lattices
   SceneGeometry geometry;
-  BodySpec spec;  // geometry in metres, cards, selectors, solver options
+  BodySpec spec;              // geometry in metres, cards, selectors, solver options
+  std::string material;       // the `material` name, empty when the scene gives its groups
+  std::string material_path;  // the card file it was read from
 };
+
+// The card file of material `name` for a scene in folder `scene_dir`: scene_dir/materials/
+// NAME.card, else the first CONICA_MATERIAL_PATH folder holding NAME.card. Empty with *error
+// set when there is none or the name is not a plain file name.
+std::string find_material(const std::string& name, const std::string& scene_dir,
+                          std::string* error);
 
 // Reads, parses and validates a scene; the mesh path is resolved against the scene's folder.
 // Validation includes building the model once, so a scene that loads also builds.

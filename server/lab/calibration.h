@@ -126,7 +126,23 @@ ColumnFloor column_floor(const std::vector<double>& strain, const std::vector<do
                          int first, double area, const ShapeBounds& bounds = {},
                          bool precompressed = false);
 
+// How calibrate() goes through the full body.
+enum class FitMethod {
+  // The cell surrogate fitted at a few Poisson ratios (poisson_grid), the best one's card
+  // compressed in the full body by static equilibrium solves (static_compression_curve), then
+  // output space mapping: the surrogate times the full-body / surrogate ratio per grid point
+  // refitted and the full body solved again (space_mapping steps), the best full-body curve
+  // kept. Every fit minimises the mean absolute relative error (the reported metric) by
+  // iteratively reweighted least squares. One card. A few full-body solves in all.
+  kStatic,
+  // The surrogate optima, then a grid of full-body compressions at the plate rate `rate` with
+  // the scene's integrator (full_grid, full_grid_pre, full_grid_poisson) and Levenberg-Marquardt
+  // through it (full_iterations): hundreds of dynamic runs.
+  kGrid,
+};
+
 struct FitOptions {
+  FitMethod method = FitMethod::kGrid;
   int cards = 1;              // conical cards, one per family part (see above), 1..3
   bool tie_taper = false;     // the cards share one taper
   bool isotropic = true;      // K > 1: the family moduli satisfy the isotropy condition
@@ -182,6 +198,18 @@ struct FitOptions {
                         // body, the best of full_grid_poisson ratios up to it; with no
                         // bulk_modulus in the scene none is added. A scene's shear_modulus
                         // keeps its ratio to the lattice's shear modulus.
+  // kStatic: Poisson ratios of the surrogate search, evenly from poisson_max down to
+  // poisson_min (the scene's ratio when the scene has no volume stiffness or `poisson` is given).
+  int poisson_grid = 5;
+  double poisson_max = 0.49;
+  int reweightings = 3;         // kStatic: L1 reweightings after each least-squares fit
+  double stroke_margin = 1.02;  // a card's stroke is at least this times its springs' largest
+                                // strain in the fit range (kStatic uses static_stroke_margin)
+  double static_stroke_margin = 1.05;  // the cylinder's rim cells strain more than the body
+  double static_tolerance = 1e-5;
+  int stroke_raises = 1;       // kStatic: a full body that collapses before the end of the travel
+  double stroke_raise = 1.08;  // raises the stroke bound by this factor, at most this often      //
+                               // relative plate force change ending a static solve
   ShapeBounds bounds;
   std::function<void(const std::string&)> progress;  // one line per stage / iteration
 };

@@ -130,6 +130,7 @@ bool RelativeResiduals::operator()(double const* const* x, double* r) const {
   for (size_t k = first; k < data->size(); ++k) {
     if (!std::isfinite(f[k])) return false;
     r[k - first] = (f[k] - (*data)[k]) / (*data)[k];
+    if (!weights.empty()) r[k - first] *= weights[k];
   }
   return true;
 }
@@ -225,7 +226,10 @@ FullRun Evaluator::full_at(const std::vector<ConicalCard>& cards, double ratio) 
   FullRun run{std::vector<double>(n, std::nan("")), 0};
   if (s.groups.empty() || !build_model(s, &m).empty()) return run;
   CompressionStats st;
-  const Curve c = compression_curve(m, p_.options.rate, p_.options.max_strain, n, &st);
+  const Curve c =
+      p_.options.method == FitMethod::kStatic
+          ? static_compression_curve(m, p_.options.max_strain, n, &st, p_.options.static_tolerance)
+          : compression_curve(m, p_.options.rate, p_.options.max_strain, n, &st);
   for (int k = 0; k < n; ++k) run.force[k] = c[k + 1].force;
   run.spread = st.half_width > 0 ? st.layer_spread / st.half_width : 0;
   return run;

@@ -111,7 +111,8 @@ std::vector<double> stroke_bounds(int K, const FitOptions& o) {
   for (int c = 0; c < K; ++c) {
     const int f = card_families(K)[c];
     const double share = (f & kEdge) ? 1.0 : (f & kFaceDiagonal) ? 0.5 : 1.0 / 3;
-    smin[c] = std::min(B.stroke_max * 0.99, std::max(B.stroke_min, 1.02 * share * o.max_strain));
+    const double margin = o.method == FitMethod::kStatic ? o.static_stroke_margin : o.stroke_margin;
+    smin[c] = std::min(B.stroke_max * 0.99, std::max(B.stroke_min, margin * share * o.max_strain));
   }
   return smin;
 }
@@ -179,6 +180,10 @@ FitResult calibrate(const BodySpec& spec, const std::vector<Curve>& curves, cons
                " kept while fitting (bulk modulus at the scene's card " +
                fmt(ev.bulk_for(spec.groups, ev.nu), 5) + " Pa)");
 
+  if (o.method == FitMethod::kStatic) {
+    static_fit(ev, &r);
+    return counted();
+  }
   // The cell surrogate: one card from a grid, then the candidates for the full body.
   const InitialGuess guess = initial_guess(ev);
   const CardShape one = fit_one_card(ev, guess);

@@ -182,6 +182,7 @@ struct RelativeResiduals {
   Layout layout;
   const std::vector<double>* data = nullptr;
   int first = 0;
+  std::vector<double> weights;  // per grid index (empty: all 1): residuals times these
 
   bool operator()(double const* const* x, double* r) const;
 };
@@ -247,5 +248,10 @@ FullBest space_mapping(Evaluator& ev, const FullBest& best);
 // --- Stage 12, refine_full_body (full_iterations > 0): Levenberg-Marquardt through the full
 // body from the best shapes. Returns the refined shapes, their curve and error.
 FullBest refine_full_body(Evaluator& ev, const std::vector<CardShape>& from);
+
+// --- FitMethod::kStatic (calibration_static.cc): the whole fit after the problem is set up;
+// fills r (cards, groups, moduli, volume terms, curves and errors) and sets ev.nu to the
+// fitted body's Poisson ratio.
+void static_fit(Evaluator& ev, FitResult* r);
 
 }  // namespace conica::lab::detail

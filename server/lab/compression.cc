@@ -153,6 +153,91 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
   return out;
 }
 
+Curve static_compression_curve(const Model& model, double to_strain, int samples,
+                               CompressionStats* stats, double tolerance, int max_steps,
+                               double dt_s) {
+  Model m = model;
+  SolverOptions& so = m.options;
+  so.integrator = Integrator::kImplicitEuler;
+  so.dt = dt_s;
+  so.substeps = 1;
+  so.mass_damping = 0;
+  so.active_region = false;
+  // Inexact Newton: each solve is repeated until the force settles, so a step need not be exact.
+  so.newton_iterations = 2;
+  so.cg_iterations = std::max(so.cg_iterations, 100);
+  so.cg_tolerance = std::max(so.cg_tolerance, 1e-4);
+  for (SpringGroup& g : m.groups) {  // elastic equilibrium: no rate terms
+    g.card.damping = 0;
+    g.card.maxwell_k = 0;
+    g.card.maxwell_tau = 0;
+  }
+  PlaneSpec& plate = m.planes.at(0);
+  const Vec3 n = plate.normal;
+  const auto [lo, hi] = extent(m, n);
+  const double travel = to_strain * (hi - lo);
+  plate.stiffness = std::max(plate.stiffness, rigid_plate_stiffness(m, false));
+  State s = make_state(m);
+  s.planes[0].offset = lo;
+  Workspace ws(m);
+  Curve out(samples + 1);
+  long steps = 0;
+  double max_pen = 0, step_time = 0, f = 0;
+  // Equilibrium at plate offset `off` from the current state: steps until the plate force
+  // settles; false when it does not within max_steps.
+  auto solve_at = [&](double off) {
+    s.planes[0].offset = off;
+    double last = std::numeric_limits<double>::quiet_NaN();
+    for (int k = 0; k < max_steps; ++k) {
+      // At rest before each step: its predictor is the last state and its inertia term a pull
+      // toward it (pseudo-transient continuation), not an extrapolation.
+      for (Vec3& v : s.v) v.setZero();
+      const auto t0 = std::chrono::steady_clock::now();
+      step(m, s, ws);
+      step_time += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      ++steps;
+      compute_forces(m, s, ws);
+      f = -n.dot(s.planes[0].force);
+      if (std::abs(f - last) <= tolerance * std::abs(f)) return true;
+      last = f;
+    }
+    return false;
+  };
+  double previous = lo;
+  for (int i = 1; i <= samples; ++i) {
+    const double target = lo + travel * i / samples;
+    // A solve that does not settle is retried from the last equilibrium in 2, 4, 8, 16 parts.
+    const State saved = s;
+    bool settled = solve_at(target);
+    for (int parts = 2; !settled && parts <= 16; parts *= 2) {
+      s = saved;
+      settled = true;
+      for (int j = 1; j <= parts && settled; ++j)
+        settled = solve_at(previous + (target - previous) * j / parts);
+    }
+    previous = target;
+    out[i].displacement = travel * i / samples;
+    out[i].force = f;
+    for (const Vec3& x : s.x) max_pen = std::max(max_pen, s.planes[0].offset - n.dot(x));
+  }
+  if (stats) {
+    stats->steps = steps;
+    stats->dt = dt_s;
+    stats->plate_stiffness = plate.stiffness;
+    stats->max_penetration = max_pen;
+    stats->rollbacks = s.counters.rollbacks;
+    stats->hard_stops = s.counters.hard_stops;
+    stats->step_seconds = steps ? step_time / static_cast<double>(steps) : 0;
+    stats->positions = s.x;
+    stats->layer_spread = layer_spread(m, s.x);
+    const Axis a = body_axis(m);
+    stats->half_width = 0;
+    for (const Vec3& r : m.rest)
+      stats->half_width = std::max(stats->half_width, (a.lateral * (r - a.centroid)).norm());
+  }
+  return out;
+}
+
 std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
                                double side, Model* cell, double bulk_modulus,
                                double shear_modulus) {

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -115,6 +116,65 @@ TEST(SceneTest, WrongScenesAreRefusedWithLineAndReason) {
   // A missing scene file.
   EXPECT_NE(load_model("/nonexistent/scene.pbtxt").error().find("cannot open scene file"),
             std::string::npos);
+}
+
+// `material: "NAME"` reads materials/NAME.card next to the scene (or on CONICA_MATERIAL_PATH):
+// the body gets the card's groups and volume terms, the same as the card pasted in; a missing
+// card, a scene that gives groups as well, or a card that is not a material is refused saying
+// where.
+TEST(SceneTest, MaterialByNameReadsTheCardFromTheLibrary) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(testing::TempDir()) / "scene_material";
+  fs::create_directories(dir / "materials");
+  const std::string card =
+      "# a calibrated silicone\nbulk_modulus: 90000\nspread_modulus: 90000\nshear_modulus: 2000\n"
+      "group { name: \"silicone\" card { conical { G: 2e8 d: 1e-3 D1: 2e-3 D2: 8e-3 L0: 10e-3 "
+      "n_a: 3 precompression: 1e-4 } stiffness_cap: 500 } }\n";
+  std::ofstream(dir / "materials" / "EF_TEST.card") << card;
+  const std::string head =
+      "lattice { size { x: 0.02 y: 0.02 z: 0.01 } cells: [2, 2, 1] }\ndensity: 1000\n"
+      "fixed { plane { normal { z: 1 } offset: 0 } }\n";
+  auto named = parse_scene(head + "material: \"EF_TEST\"\n", "organ.pbtxt", dir.string());
+  ASSERT_TRUE(named) << named.error();
+  auto pasted = parse_scene(head + card, "pasted.pbtxt", dir.string());
+  ASSERT_TRUE(pasted) << pasted.error();
+  const BodySpec &a = named.value().spec, &b = pasted.value().spec;
+  EXPECT_EQ(named.value().material, "EF_TEST");
+  EXPECT_EQ(named.value().material_path, (dir / "materials" / "EF_TEST.card").string());
+  ASSERT_EQ(a.groups.size(), 1u);
+  EXPECT_EQ(a.groups[0].name, "silicone");
+  EXPECT_EQ(a.groups[0].card.conical.G, 2e8);
+  EXPECT_EQ(a.groups[0].card.conical.precompression, 1e-4);
+  EXPECT_EQ(a.groups[0].card.stiffness_cap, b.groups[0].card.stiffness_cap);
+  EXPECT_EQ(a.bulk_modulus, 90000);
+  EXPECT_EQ(a.spread_modulus, b.spread_modulus);
+  EXPECT_EQ(a.shear_modulus, 2000);
+  // Found on CONICA_MATERIAL_PATH from a scene elsewhere.
+  ::setenv("CONICA_MATERIAL_PATH", ("/nonexistent:" + (dir / "materials").string()).c_str(), 1);
+  auto far = parse_scene(head + "material: \"EF_TEST\"\n", "far.pbtxt", "/");
+  ::unsetenv("CONICA_MATERIAL_PATH");
+  ASSERT_TRUE(far) << far.error();
+  EXPECT_EQ(far.value().spec.groups[0].card.conical.G, 2e8);
+  // Refusals.
+  auto missing = parse_scene(head + "material: \"EF_NONE\"\n", "organ.pbtxt", dir.string());
+  ASSERT_FALSE(missing);
+  EXPECT_NE(missing.error().find("organ.pbtxt:4:"), std::string::npos) << missing.error();
+  EXPECT_NE(missing.error().find("EF_NONE.card"), std::string::npos) << missing.error();
+  auto both = parse_scene(head + "material: \"EF_TEST\"\n" + card, "both.pbtxt", dir.string());
+  ASSERT_FALSE(both);
+  EXPECT_NE(both.error().find("gives no group"), std::string::npos) << both.error();
+  auto path_name = parse_scene(head + "material: \"../x\"\n", "p.pbtxt", dir.string());
+  ASSERT_FALSE(path_name);
+  EXPECT_NE(path_name.error().find("not a plain name"), std::string::npos) << path_name.error();
+  std::ofstream(dir / "materials" / "BAD.card") << "density: 1000\nbulk_modulus: 1\n";
+  auto bad = parse_scene(head + "material: \"BAD\"\n", "b.pbtxt", dir.string());
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().find("BAD.card: a material card holds groups"), std::string::npos)
+      << bad.error();
+  std::ofstream(dir / "materials" / "TYPO.card") << "group { nme: \"x\" }\n";
+  auto typo = parse_scene(head + "material: \"TYPO\"\n", "t.pbtxt", dir.string());
+  ASSERT_FALSE(typo);
+  EXPECT_NE(typo.error().find("TYPO.card:1:"), std::string::npos) << typo.error();
 }
 
 TEST(SceneTest, PrecompressionIsReadInMetresAndCheckedAgainstTheStroke) {

@@ -177,6 +177,53 @@ TEST(CompressionTest, VolumeAndShearStiffnessKeepTheCompressedBodyStable) {
   }
 }
 
+// The quasi-static test (static_compression_curve) against two independent answers on the
+// shear-stiff cube of the test above: the homogenised cell (between frictionless plates a box
+// lattice's affine state is an exact equilibrium, so the static body must give the cell's stress
+// times its cross-section to the solver's tolerance), and the dynamic test at a slow plate
+// (1 mm/s on a 20 mm cube, whose viscous and inertial forces are then a small part of the load):
+// static and dynamic answers agree. And the static solve has no rate: damping on the cards does
+// not change it.
+TEST(CompressionTest, StaticCompressionMatchesTheCellAndASlowDynamicTest) {
+  SpringCard card;
+  card.law = LawKind::kConical;
+  card.conical = ConicalCard{2e8, 1.2e-3, 2e-3, 8e-3, 10e-3, 3};
+  card.stiffness_cap = 1000;
+  const ConicalLaw law(card.conical);
+  const double E0 = LatticeYoungZ(law.k0(), card.conical.L0);
+  const double H = 0.02, kappa = 20 * E0;
+  BodySpec spec = CubeSpec(card, 3, H);
+  spec.bulk_modulus = spec.spread_modulus = kappa;
+  spec.shear_modulus = E0 / 3;
+  Model cell, body;
+  ASSERT_EQ(make_uniaxial_cell(spec.groups, Mapping::kStrain, 0.01, &cell, kappa, E0 / 3), "");
+  ASSERT_EQ(build_model(spec, &body), "");
+  std::vector<double> strains;
+  for (int i = 1; i <= 10; ++i) strains.push_back(0.03 * i);
+  const std::vector<double> sigma = cell_stress_curve(cell, strains);
+  CompressionStats st;
+  const Curve quasi = static_compression_curve(body, 0.3, 10, &st);
+  const Curve dynamic = compression_curve(body, 1e-3, 0.3, 10);
+  ASSERT_EQ(quasi.size(), 11u);
+  for (int i = 1; i <= 10; ++i) {
+    EXPECT_NEAR(quasi[i].displacement, 0.03 * i * H, 1e-12);
+    // 3-5e-4 low: the plate is a stiff penalty, the body is compressed by the travel less the
+    // plate's penetration
+    EXPECT_NEAR(quasi[i].force / (sigma[i - 1] * H * H), 1.0, 1e-3) << "strain " << strains[i - 1];
+    EXPECT_NEAR(dynamic[i].force / quasi[i].force, 1.0, 0.01) << "strain " << strains[i - 1];
+  }
+  EXPECT_LT(st.layer_spread / st.half_width, 1e-4) << "homogeneous";
+  EXPECT_EQ(st.rollbacks, 0u);
+  std::printf("static: %ld steps for 10 samples; dynamic / static at 30 %%: %.5f\n", st.steps,
+              dynamic[10].force / quasi[10].force);
+  BodySpec damped = spec;
+  damped.groups[0].card.damping = 5;
+  Model damped_body;
+  ASSERT_EQ(build_model(damped, &damped_body), "");
+  const Curve quasi_damped = static_compression_curve(damped_body, 0.3, 10);
+  for (int i = 1; i <= 10; ++i) EXPECT_NEAR(quasi_damped[i].force / quasi[i].force, 1.0, 1e-9) << i;
+}
+
 TEST(CompressionTest, AddsATopPlateOnlyWhenNone) {
   BodySpec s;
   s.mesh = make_box_lattice(Vec3(0.01, 0.01, 0.03), {1, 1, 3});

@@ -27,6 +27,7 @@ void register_contact(CLI::App& app, Runner* run);
 void register_indent(CLI::App& app, Runner* run);
 void register_fem_reference(CLI::App& app, Runner* run);
 void register_validate(CLI::App& app, Runner* run);
+void register_library(CLI::App& app, Runner* run);
 
 struct TradeoffRow;
 // The speed/accuracy sweep of conica-lab tradeoff (quick: the small one). Scenes are found from

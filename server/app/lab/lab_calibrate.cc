@@ -30,12 +30,23 @@ void register_calibrate(CLI::App& app, Runner* run) {
     FitOptions fit;  // the options that map one to one, with the library's defaults
     double rate_mm_per_min = 500;
     bool free_moduli = false, no_precompression = false;
+    std::string method = "grid";
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
       "calibrate", "Fit a scene's conical spring card to measured force-displacement curves");
   cmd->add_option("--scene", o->scene, "scene file (.pbtxt)")->required();
   cmd->add_option("--data", o->data, "compression test CSV (repeat for several)")->required();
+  cmd->add_option("--method", o->method,
+                  "static: the surrogate at --poisson-grid ratios, the full body by static "
+                  "equilibrium solves and --space-mapping steps (about a minute); grid: the "
+                  "full-body grid of dynamic runs and Levenberg-Marquardt through it (--full-grid "
+                  "and the options after it; tens of minutes)")
+      ->check(CLI::IsMember({"static", "grid"}))
+      ->capture_default_str();
+  cmd->add_option("--poisson-grid", o->fit.poisson_grid,
+                  "static: Poisson ratios of the surrogate search, from 0.49 down to --poisson-min")
+      ->capture_default_str();
   cmd->add_option("--max-strain", o->fit.max_strain, "fit up to this strain")
       ->capture_default_str();
   cmd->add_option("--skip-strain", o->fit.skip_strain,
@@ -100,8 +111,8 @@ void register_calibrate(CLI::App& app, Runner* run) {
   cmd->add_option("--curves", o->curves,
                   "write displacement_mm,data_N,surrogate_N,full_N on the grid to this CSV");
   cmd->add_option("--plot", o->plot, "draw data and model curves to this PNG (needs --curves)");
-  cmd->callback([o, run] {
-    *run = [o]() -> int {
+  cmd->callback([o, run, cmd] {
+    *run = [o, cmd]() -> int {
       // Read: the scene, then every curve against the body's height (units, reach).
       auto scene = io::read_scene(o->scene);
       if (!scene) {
@@ -129,6 +140,12 @@ void register_calibrate(CLI::App& app, Runner* run) {
         curves.push_back(std::move(curve));
       }
       FitOptions fo = o->fit;
+      if (o->method == "static") {
+        fo.method = FitMethod::kStatic;
+        // Two chains (one per thread) of two space-mapping steps unless asked otherwise.
+        if (cmd->count("--space-mapping") == 0) fo.space_mapping = 2;
+        if (cmd->count("--verify-candidates") == 0) fo.verify_candidates = 2;
+      }
       fo.isotropic = !o->free_moduli;
       fo.fit_precompression = !o->no_precompression;
       fo.rate = o->rate_mm_per_min * 1e-3 / 60;

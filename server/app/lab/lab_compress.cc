@@ -26,6 +26,8 @@ void register_compress(CLI::App& app, Runner* run) {
     int samples = 50;
     bool bonded = false, quasi_static = false;
     double tolerance = 1e-4;
+    bool static_solve = false;
+    double static_tolerance = 1e-5;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -45,6 +47,12 @@ void register_compress(CLI::App& app, Runner* run) {
                 "move the plate in --samples increments, each brought to equilibrium");
   cmd->add_option("--tolerance", o->tolerance,
                   "quasi-static: out-of-balance force over the reaction to converge")
+      ->capture_default_str();
+  cmd->add_flag("--static", o->static_solve,
+                "static equilibrium at each sample (continuation in strain, no rate terms) "
+                "instead of moving the plate at --rate-mm-per-min");
+  cmd->add_option("--static-tolerance", o->static_tolerance,
+                  "--static: relative change of the plate force that ends a solve")
       ->capture_default_str();
   cmd->callback([o, run] {
     *run = [o]() -> int {
@@ -95,6 +103,8 @@ void register_compress(CLI::App& app, Runner* run) {
                      qs.unconverged == 0 ? "converged" : "NOT CONVERGED", qs.worst_residual,
                      qo.tolerance, qs.unconverged, static_cast<unsigned long long>(qs.rollbacks),
                      static_cast<unsigned long long>(qs.hard_stops));
+      } else if (o->static_solve) {
+        c = static_compression_curve(m, o->to_strain, o->samples, &st, o->static_tolerance);
       } else {
         c = compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples, &st);
       }
@@ -114,11 +124,13 @@ void register_compress(CLI::App& app, Runner* run) {
       std::fprintf(stderr,
                    "conica-lab compress: %s, height %.4g mm, %ld %s steps of %.4g ms, plate "
                    "penalty %.4g N/m, max penetration %.3g mm, rollbacks %llu, force at %.4g mm: "
-                   "%.6g N, step time %.4g us\n",
+                   "%.6g N, step time %.4g us, layer spread %.3g %% of the half width\n",
                    o->scene.c_str(), plate_height(m) * 1e3, st.steps,
-                   integrator_name(m.options.integrator), st.dt * 1e3, st.plate_stiffness,
-                   st.max_penetration * 1e3, static_cast<unsigned long long>(st.rollbacks),
-                   c.back().displacement * 1e3, c.back().force, st.step_seconds * 1e6);
+                   o->static_solve || o->quasi_static || o->bonded ? "static (implicit)" : integrator_name(m.options.integrator),
+                   st.dt * 1e3, st.plate_stiffness, st.max_penetration * 1e3,
+                   static_cast<unsigned long long>(st.rollbacks), c.back().displacement * 1e3,
+                   c.back().force, st.step_seconds * 1e6,
+                   st.half_width > 0 ? 100 * st.layer_spread / st.half_width : 0.0);
       if (!o->plot.empty()) {
         std::string data = o->out;
         if (data == "-") {

@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   conica::lab::register_indent(app, &run);
   conica::lab::register_fem_reference(app, &run);
   conica::lab::register_validate(app, &run);
+  conica::lab::register_library(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
