@@ -60,7 +60,7 @@ CONF
 export SLURM_CONF=$conf/slurm.conf
 slurmctld -D -f "$SLURM_CONF" >"$work/log/slurmctld.out" 2>&1 &
 pids+=("$!")
-slurmd -D -f "$SLURM_CONF" >"$work/log/slurmd.out" 2>&1 &
+slurmd -D -N localhost -f "$SLURM_CONF" >"$work/log/slurmd.out" 2>&1 &
 pids+=("$!")
 for _ in $(seq 60); do
   sinfo -h -o %T 2>/dev/null | grep -qE '^(idle|mixed|allocated)' && break

@@ -126,7 +126,9 @@ void register_compress(CLI::App& app, Runner* run) {
                    "penalty %.4g N/m, max penetration %.3g mm, rollbacks %llu, force at %.4g mm: "
                    "%.6g N, step time %.4g us, layer spread %.3g %% of the half width\n",
                    o->scene.c_str(), plate_height(m) * 1e3, st.steps,
-                   o->static_solve || o->quasi_static || o->bonded ? "static (implicit)" : integrator_name(m.options.integrator),
+                   o->static_solve || o->quasi_static || o->bonded
+                       ? "static (implicit)"
+                       : integrator_name(m.options.integrator),
                    st.dt * 1e3, st.plate_stiffness, st.max_penetration * 1e3,
                    static_cast<unsigned long long>(st.rollbacks), c.back().displacement * 1e3,
                    c.back().force, st.step_seconds * 1e6,
