@@ -102,6 +102,28 @@ double layer_spread(const Model& model, const std::vector<Vec3>& x) {
   return outer.empty() ? 0.0 : hi - lo;
 }
 
+namespace {
+
+// What a compression run reports of itself (CompressionStats) from its final state.
+void fill_stats(const Model& m, const State& s, double plate_stiffness, double dt, double max_pen,
+                long steps, double step_time, CompressionStats* stats) {
+  stats->steps = steps;
+  stats->dt = dt;
+  stats->plate_stiffness = plate_stiffness;
+  stats->max_penetration = max_pen;
+  stats->rollbacks = s.counters.rollbacks;
+  stats->hard_stops = s.counters.hard_stops;
+  stats->step_seconds = steps ? step_time / static_cast<double>(steps) : 0;
+  stats->positions = s.x;
+  stats->layer_spread = layer_spread(m, s.x);
+  const Axis a = body_axis(m);
+  stats->half_width = 0;
+  for (const Vec3& r : m.rest)
+    stats->half_width = std::max(stats->half_width, (a.lateral * (r - a.centroid)).norm());
+}
+
+}  // namespace
+
 Curve compression_curve(const Model& model, double rate, double to_strain, int samples,
                         CompressionStats* stats) {
   Model m = model;
@@ -135,21 +157,7 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
     out[i].displacement = travel * i / samples;
     out[i].force = interpolate(u, f, out[i].displacement);
   }
-  if (stats) {
-    stats->steps = steps;
-    stats->dt = dt;
-    stats->plate_stiffness = plate.stiffness;
-    stats->max_penetration = max_pen;
-    stats->rollbacks = s.counters.rollbacks;
-    stats->hard_stops = s.counters.hard_stops;
-    stats->step_seconds = step_time / static_cast<double>(steps);
-    stats->positions = s.x;
-    stats->layer_spread = layer_spread(m, s.x);
-    const Axis a = body_axis(m);
-    stats->half_width = 0;
-    for (const Vec3& r : m.rest)
-      stats->half_width = std::max(stats->half_width, (a.lateral * (r - a.centroid)).norm());
-  }
+  if (stats) fill_stats(m, s, plate.stiffness, dt, max_pen, steps, step_time, stats);
   return out;
 }
 
@@ -220,21 +228,7 @@ Curve static_compression_curve(const Model& model, double to_strain, int samples
     out[i].force = f;
     for (const Vec3& x : s.x) max_pen = std::max(max_pen, s.planes[0].offset - n.dot(x));
   }
-  if (stats) {
-    stats->steps = steps;
-    stats->dt = dt_s;
-    stats->plate_stiffness = plate.stiffness;
-    stats->max_penetration = max_pen;
-    stats->rollbacks = s.counters.rollbacks;
-    stats->hard_stops = s.counters.hard_stops;
-    stats->step_seconds = steps ? step_time / static_cast<double>(steps) : 0;
-    stats->positions = s.x;
-    stats->layer_spread = layer_spread(m, s.x);
-    const Axis a = body_axis(m);
-    stats->half_width = 0;
-    for (const Vec3& r : m.rest)
-      stats->half_width = std::max(stats->half_width, (a.lateral * (r - a.centroid)).norm());
-  }
+  if (stats) fill_stats(m, s, plate.stiffness, dt_s, max_pen, steps, step_time, stats);
   return out;
 }
 
