@@ -270,7 +270,11 @@ TEST_F(FaultTest, ProbeFloodAtAbout100kHzLeavesOthersServed) {
       static_cast<unsigned long long>(ticks_during),
       static_cast<unsigned long long>(st.missed_ticks), static_cast<unsigned long long>(st.ticks));
   EXPECT_GT(sent.load(), 50000u) << "the flood did not reach 25 kHz";
-  EXPECT_GT(st.probes_received, 5000u) << "the flood did not reach the server";
+  // The flood is the server's traffic: it read far more of the flooder's probes than of the
+  // good client's (how many it reads in 2 s depends on the CPU it gets; at most input_budget per
+  // tick plus what arrives between ticks).
+  EXPECT_GT(st.probes_received, 20u * static_cast<std::uint64_t>(asked))
+      << "the flood did not reach the server";
   EXPECT_GE(answered, asked * 9 / 10)
       << answered << " of " << asked << " answered during the flood";
   EXPECT_GT(asked, 5);
