@@ -11,6 +11,8 @@ PACKAGES=(
   libeigen3-dev libzmq3-dev cppzmq-dev protobuf-compiler libprotobuf-dev
   libspdlog-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libceres-dev
   calculix-ccx  # conica-lab fem-reference: the continuum reference (docs/validation.md)
+  libsuitesparse-dev  # CHOLMOD: the implicit system's sparse factor (server/core/sparse_system.h)
+  tetgen  # scripts/mesh-liver-fine.sh: the finer liver of configs/liver-fine-ef30.pbtxt
   python3-zmq python3-protobuf python3-matplotlib python3-numpy python3-websockets python3-meshio
   python3-venv python3-pip python3-setuptools python3-wheel python3-pytest
   # the one-node Slurm cluster of the library sweep's CI step (scripts/slurm/ci-cluster.sh)

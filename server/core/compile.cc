@@ -11,6 +11,7 @@
 
 #include "core/body.h"
 #include "core/contact.h"
+#include "core/sparse_system.h"
 #include "core/step_detail.h"
 #include "core/volume.h"
 
@@ -275,7 +276,14 @@ Workspace::Workspace(const Model& m)
   good.x.assign(m.num_nodes(), Vec3::Zero());
   good.v.assign(m.num_nodes(), Vec3::Zero());
   good.maxwell.assign(m.num_springs(), 0);
+  if (m.options.integrator == Integrator::kImplicitEuler &&
+      m.options.linear_solver == LinearSolver::kFactorCG)
+    factor = std::make_unique<FactorScratch>(m);
 }
+
+Workspace::~Workspace() = default;
+Workspace::Workspace(Workspace&&) noexcept = default;
+Workspace& Workspace::operator=(Workspace&&) noexcept = default;
 
 void options_changed(const Model& m, State& s, Workspace& ws) {
   const int old_every = ws.bounds.far_every;

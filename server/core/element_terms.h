@@ -14,6 +14,8 @@
 //                                       component c of the element's node a
 //   diagonal<N>(m, E, h2, e, nodes, nn, d)  the node blocks of h^2 H_e added to d (six
 //                                       component-major entries 00 11 22 01 02 12 per node)
+//   block<N>(m, E, h2, e, a, b, B)      B += the 3 x 3 block (a, b) of h^2 H_e (the sparse
+//                                       assembly, core/sparse_system.h)
 // H_e is the term's Gauss-Newton Hessian on element e, positive semi-definite: exact at rest for
 // the volume term; the shear term's Laplacian part mu J^(-2/3) (b_a . b_b) I. Elements are numbered
 // per kind: N = 4 tetrahedra, N = 8 hexahedra (for_each_element visits tetrahedra first).
@@ -58,6 +60,11 @@ inline void add_node_block(int i, int nn, const Vec3& u, double k, double* d) {
   d[4 * nn + i] += k * u.x() * u.z();
   d[5 * nn + i] += k * u.y() * u.z();
 }
+// B += k u v^T.
+inline void add_outer(const Vec3& u, const Vec3& v, double k, double (&B)[3][3]) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) B[r][c] += k * u[r] * v[c];
+}
 }  // namespace detail
 
 // W_e = (kappa V0 / 2) (J - 1)^2 per element, and for hexahedra with a spread modulus kappa_s
@@ -98,6 +105,19 @@ struct VolumeTerm {
         for (int q = 0; q < 8; ++q) detail::add_node_block(nodes[a], nn, gq[8 * q + a], cq, d);
     }
   }
+  template <int N>
+  static void block(const Model& m, const ElementScratch& E, double h2, int e, int a, int b,
+                    double (&B)[3][3]) {
+    const int nt = static_cast<int>(m.tetrahedra.size());
+    const Vec3* g = E.volume_grad.data() + (N == 4 ? 4 * e : 4 * nt + 8 * e);
+    detail::add_outer(g[a], g[b], h2 * E.volume_coef[N == 4 ? e : nt + e], B);
+    if constexpr (N == 8) {
+      if (!(m.spread_modulus > 0)) return;
+      const Vec3* gq = E.spread_grad.data() + 64 * e;
+      const double cq = h2 * E.spread_coef[e];
+      for (int q = 0; q < 8; ++q) detail::add_outer(gq[8 * q + a], gq[8 * q + b], cq, B);
+    }
+  }
 };
 
 // W = v0 (mu / 2) (J^(-2/3) tr(F^T F) - 3) per tetrahedron and per hexahedron Gauss point
@@ -130,6 +150,12 @@ struct ShearTerm {
     const double* lap = laplacian<N>(m, E, e);
     for (int a = 0; a < N; ++a)
       for (int c = 0; c < 3; ++c) d[c * nn + nodes[a]] += lap[(N + 1) * a];
+  }
+  template <int N>
+  static void block(const Model& m, const ElementScratch& E, double, int e, int a, int b,
+                    double (&B)[3][3]) {
+    const double l = laplacian<N>(m, E, e)[N * a + b];
+    for (int c = 0; c < 3; ++c) B[c][c] += l;
   }
 };
 

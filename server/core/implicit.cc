@@ -17,6 +17,7 @@
 #include <type_traits>
 
 #include "core/element_terms.h"
+#include "core/sparse_system.h"
 #include "core/step_detail.h"
 
 namespace conica::detail {
@@ -390,6 +391,88 @@ int solve(const Model& m, Workspace& ws) {
   return it;
 }
 
+// CG as solve() with the factor's A_f^-1 as the preconditioner (LinearSolver::kFactorCG).
+int solve_factored(const Model& m, Workspace& ws, SystemFactor& factor) {
+  const int nn = m.num_nodes(), n3 = 3 * nn;
+  double* __restrict dx = ws.system.dx.data();
+  double* __restrict r = ws.system.r.data();
+  double* __restrict z = ws.system.z.data();
+  double* __restrict p = ws.system.p.data();
+  double* __restrict ap = ws.system.ap.data();
+  const double* __restrict rhs = ws.system.rhs.data();
+  std::fill(dx, dx + n3, 0.0);
+  std::copy(rhs, rhs + n3, r);
+  factor.solve(r, z);
+  double rz = dot(n3, r, z);
+  std::copy(z, z + n3, p);
+  const double bnorm2 = dot(n3, r, r);
+  const double tol2 = m.options.cg_tolerance * m.options.cg_tolerance * bnorm2;
+  int it = 0;
+  for (; it < m.options.cg_iterations && bnorm2 > 0; ++it) {
+    apply_system(m, ws, p, ap);
+    const double pap = dot(n3, p, ap);
+    if (!(pap > 0)) break;
+    const double step = rz / pap;
+    double rr = 0;
+    for (int k = 0; k < n3; ++k) {
+      dx[k] += step * p[k];
+      r[k] -= step * ap[k];
+      rr += r[k] * r[k];
+    }
+    if (rr <= tol2) {
+      ++it;
+      break;
+    }
+    factor.solve(r, z);
+    const double rz_new = dot(n3, r, z);
+    const double beta = rz_new / rz;
+    rz = rz_new;
+    for (int k = 0; k < n3; ++k) p[k] = z[k] + beta * p[k];
+  }
+  return it;
+}
+
+// One Newton iteration's solve with LinearSolver::kFactorCG: takes a factor the worker finished,
+// asks for a new one when wanted (assembled here; factored by the worker, or here without one),
+// then CG with the factor in use, or with the block-Jacobi preconditioner until there is one.
+int factored_solve(const Model& m, State& s, Workspace& ws) {
+  FactorScratch& F = *ws.factor;
+  int st = F.next_state.load(std::memory_order_acquire);
+  if (st == FactorScratch::kFactored || st == FactorScratch::kFailed) {
+    if (st == FactorScratch::kFactored) {
+      std::swap(F.current, F.next);
+      ++s.counters.factorizations;
+    } else {
+      ++s.counters.factor_failures;
+    }
+    F.next_state.store(FactorScratch::kIdle, std::memory_order_release);
+    st = FactorScratch::kIdle;
+  }
+  if (F.wanted && st == FactorScratch::kIdle) {
+    F.next->assemble(m, ws);
+    F.wanted = false;
+    F.age = 0;
+    if (F.worker) {
+      F.next_state.store(FactorScratch::kAssembled, std::memory_order_release);
+      F.next_state.notify_one();
+    } else if (F.next->factorize()) {  // allocates inside CHOLMOD: no worker to do it
+      std::swap(F.current, F.next);
+      ++s.counters.factorizations;
+    } else {
+      ++s.counters.factor_failures;
+    }
+  }
+  int it;
+  if (F.current->factored()) {
+    it = solve_factored(m, ws, *F.current);
+  } else {
+    build_preconditioner(m, ws);
+    it = solve(m, ws);
+  }
+  if (it > m.options.refactor_iterations) F.wanted = true;
+  return it;
+}
+
 }  // namespace
 
 void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p, double* y) {
@@ -429,6 +512,59 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
     for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
     build_preconditioner(m, ws);
     s.counters.cg_iterations += solve(m, ws);
+
+    // Line search: never make a spring shorter than its hard-stop length (unless it was already
+    // and the step does not shorten it further). Measured along its direction, a spring's length
+    // changes by at most the motion of its two ends: a step that moves no node by half the
+    // smallest room to the hard stop (at these positions, from the force pass) needs no test.
+    const double* dx = ws.system.dx.data();
+    double step_len = 1.0;
+    if (!(ws.springs.slack > 2 * std::sqrt(max_node_motion2(nn, dx)))) {
+      for (int tries = 0; tries < 12; ++tries) {
+        if (count_blocked(ns, nn, ws.springs.px.data(), ws.springs.py.data(), ws.springs.pz.data(),
+                          dx, step_len, m.spring_i.data(), m.spring_j.data(), ws.springs.ux.data(),
+                          ws.springs.uy.data(), ws.springs.uz.data(), ws.layout.min_length.data(),
+                          ws.springs.length.data()) == 0)
+          break;
+        step_len *= 0.5;
+      }
+    }
+    for (int i = 0; i < nn; ++i) s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
+  }
+  for (int i = 0; i < nn; ++i)
+    s.v[i] = ((s.x[i] - ws.system.x0[i]) / h).cwiseProduct(m.free_axes[i]);
+}
+
+// integrate_implicit with LinearSolver::kFactorCG: the same Newton iteration and line search,
+// each system solved by factored_solve. Kept apart so that the block-Jacobi path's arithmetic
+// stays as it was to the last bit.
+void integrate_implicit_factored(const Model& m, State& s, Workspace& ws) {
+  const double h = substep_of(m);
+  const int nn = m.num_nodes(), ns = m.num_springs();
+  for (int i = 0; i < nn; ++i) {
+    ws.system.x0[i] = s.x[i];
+    ws.system.v0[i] = s.v[i];
+    s.x[i] += h * s.v[i].cwiseProduct(m.free_axes[i]);  // predictor x1 = x0 + h v0
+  }
+  hard_stop(m, s, ws);  // the predictor must not cross solid height either
+  const double mfac = 1.0 + h * m.options.mass_damping;
+  for (int i = 0; i < nn; ++i) ws.system.mass[i] = m.mass[i] * mfac;
+  FactorScratch& F = *ws.factor;
+  if (m.options.refactor_every > 0 && ++F.age >= m.options.refactor_every) F.wanted = true;
+
+  for (int it = 0; it < m.options.newton_iterations; ++it) {
+    for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.system.x0[i]) / h;
+    evaluate_forces(m, s, ws, true);
+    // rhs = -h^2 R = h^2 f - M (x1 - x0 - h v0), on free axes.
+    for (int i = 0; i < nn; ++i) {
+      const Vec3 res =
+          h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.system.x0[i] - h * ws.system.v0[i]);
+      for (int c = 0; c < 3; ++c) ws.system.rhs[c * nn + i] = res[c] * ws.system.free[c * nn + i];
+    }
+    ws.system.h2 = h * h;
+    system_coefficients(m, ws, h);
+    for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
+    s.counters.cg_iterations += factored_solve(m, s, ws);
 
     // Line search: never make a spring shorter than its hard-stop length (unless it was already
     // and the step does not shorten it further). Measured along its direction, a spring's length

@@ -60,6 +60,14 @@ enum class Integrator : std::uint8_t {
 };
 const char* integrator_name(Integrator i);
 
+// How the implicit integrator solves each Newton iteration's system A dx = rhs.
+enum class LinearSolver : std::uint8_t {
+  kBlockJacobiCG = 0,  // matrix-free CG, 3 x 3 block-Jacobi preconditioner (core/implicit.cc)
+  kFactorCG = 1,       // matrix-free CG preconditioned by a sparse Cholesky factor of A, renewed
+                       // every refactor_every steps or when CG needs more than
+                       // refactor_iterations (core/sparse_system.h)
+};
+
 struct SolverOptions {
   Integrator integrator = Integrator::kSymplecticEuler;
   double dt = 1e-3;            // s, one tick
@@ -67,7 +75,11 @@ struct SolverOptions {
   int newton_iterations = 2;   // implicit: fixed budget per step
   int cg_iterations = 40;      // implicit: fixed budget per Newton iteration
   double cg_tolerance = 1e-8;  // implicit: relative residual to stop early
-  double mass_damping = 0;     // 1/s: Rayleigh mass-proportional damping on all nodes
+  LinearSolver linear_solver = LinearSolver::kBlockJacobiCG;  // implicit
+  int refactor_every = 0;       // kFactorCG: steps between factorisations (0: only on demand)
+  int refactor_iterations = 4;  // kFactorCG: a solve that takes more CG iterations asks for a
+                                // new factor
+  double mass_damping = 0;      // 1/s: Rayleigh mass-proportional damping on all nodes
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
   double min_length_fraction = 0.05;                  // hard stop: no spring shorter than this x l0
   bool hard_stop = true;                              // off only to show what happens without it
@@ -240,12 +252,14 @@ const char* stage_name(Stage stage);
 // Counters the step reports through instead of logging.
 struct Counters {
   std::uint64_t steps = 0;
-  std::uint64_t rollbacks = 0;      // guard trips rolled back to the last good state
-  std::uint64_t nan_events = 0;     // NaN / Inf found after a step
-  std::uint64_t speed_events = 0;   // a node faster than options.max_speed
-  std::uint64_t hard_stops = 0;     // springs projected back to their minimum length
-  std::uint64_t cg_iterations = 0;  // total, implicit only
-  std::uint64_t awake_nodes = 0;    // active region: nodes integrated in the last tick
+  std::uint64_t rollbacks = 0;        // guard trips rolled back to the last good state
+  std::uint64_t nan_events = 0;       // NaN / Inf found after a step
+  std::uint64_t speed_events = 0;     // a node faster than options.max_speed
+  std::uint64_t hard_stops = 0;       // springs projected back to their minimum length
+  std::uint64_t cg_iterations = 0;    // total, implicit only
+  std::uint64_t factorizations = 0;   // kFactorCG: factors taken into use
+  std::uint64_t factor_failures = 0;  // kFactorCG: factorisations refused (not positive definite)
+  std::uint64_t awake_nodes = 0;      // active region: nodes integrated in the last tick
   std::array<std::uint64_t, kNumStages> stage_ns{};  // ns spent in each stage, in all (steady
                                                      // clock; diagnostic, not part of replay)
 };

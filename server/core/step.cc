@@ -95,7 +95,10 @@ void substep(const Model& m, State& s, Workspace& ws) {
       integrate_explicit(m, s, ws, false);
       break;
     case Integrator::kImplicitEuler:
-      integrate_implicit(m, s, ws);
+      if (ws.factor)
+        integrate_implicit_factored(m, s, ws);
+      else
+        integrate_implicit(m, s, ws);
       break;
   }
   lap(s, ws, Stage::kIntegrate);

@@ -80,11 +80,14 @@
 // that makes a spring shorter than that length.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include "core/model.h"
 
 namespace conica {
+
+struct FactorScratch;  // core/sparse_system.h
 
 // What the compile step derives from the model (layout, bounds) and each stage's scratch, sized
 // once per model (compile.cc). Nothing here outlives a tick: a Workspace built afresh at any tick
@@ -205,6 +208,9 @@ struct Rollback {
 
 struct Workspace {
   explicit Workspace(const Model& model);
+  ~Workspace();
+  Workspace(Workspace&&) noexcept;
+  Workspace& operator=(Workspace&&) noexcept;
 
   SpringLayout layout;
   RegionBounds bounds;
@@ -214,6 +220,10 @@ struct Workspace {
   ContactScratch contact;
   SystemScratch system;
   Rollback good;
+  // The implicit system's sparse factor (options.linear_solver kFactorCG), else null. A worker
+  // thread that factors its `next` (loop/factor_worker.h) must be stopped before the Workspace is
+  // replaced or destroyed.
+  std::unique_ptr<FactorScratch> factor;
   std::uint64_t lap_ns = 0;  // steady clock at the last stage lap (step_detail.h)
 };
 

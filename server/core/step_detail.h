@@ -125,6 +125,8 @@ void relax_maxwell(const Model& m, State& s, double h);
 void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic);
 // One backward Euler substep (implicit.cc).
 void integrate_implicit(const Model& m, State& s, Workspace& ws);
+// The same with the sparse factor preconditioner (ws.factor, LinearSolver::kFactorCG).
+void integrate_implicit_factored(const Model& m, State& s, Workspace& ws);
 // y = A p, the backward Euler system A = M (1 + h mu) - h^2 (df/dx + df/dv / h) at (s.x, s.v) as
 // the Newton iteration builds it (component-major vectors of 3 num_nodes entries, free axes).
 void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p, double* y);

@@ -412,6 +412,15 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   if (s.has_newton_iterations()) o.newton_iterations = s.newton_iterations();
   if (s.has_cg_iterations()) o.cg_iterations = s.cg_iterations();
   if (s.has_cg_tolerance()) o.cg_tolerance = s.cg_tolerance();
+  if (s.linear_solver() == v1::FACTOR_CG) {
+    if (o.integrator != Integrator::kImplicitEuler)
+      return Error{swhere + "linear_solver FACTOR_CG needs integrator IMPLICIT_EULER"};
+    o.linear_solver = LinearSolver::kFactorCG;
+  }
+  if (s.has_refactor_every()) o.refactor_every = s.refactor_every();
+  if (s.has_refactor_iterations()) o.refactor_iterations = s.refactor_iterations();
+  if (o.refactor_every < 0 || o.refactor_iterations < 0)
+    return Error{swhere + "refactor_every and refactor_iterations must be >= 0"};
   if (s.has_min_length_fraction()) o.min_length_fraction = s.min_length_fraction();
   if (s.has_max_speed()) o.max_speed = s.max_speed();
   o.mass_damping = s.mass_damping();

@@ -113,6 +113,11 @@ void set_solver(const SolverOptions& o, v1::Solver* out) {
   out->set_newton_iterations(o.newton_iterations);
   out->set_cg_iterations(o.cg_iterations);
   out->set_cg_tolerance(o.cg_tolerance);
+  if (o.linear_solver == LinearSolver::kFactorCG) {
+    out->set_linear_solver(v1::FACTOR_CG);
+    out->set_refactor_every(o.refactor_every);
+    out->set_refactor_iterations(o.refactor_iterations);
+  }
   out->set_mass_damping(o.mass_damping);
   if (o.gravity.norm() > 0) set(o.gravity, out->mutable_gravity());
   out->set_min_length_fraction(o.min_length_fraction);

@@ -208,7 +208,7 @@ void FixedRateLoop::apply(const Route& route, const ControlRequest& request) {
       case Parameter::kDamping:
         if ((ok = v >= 0)) {
           m.options.mass_damping = v;
-          options_changed(m, s.state, *s.workspace);  // the far field's bounds depend on it
+          scene_options_changed(&s);  // the far field's bounds depend on it
         }
         break;
       case Parameter::kGravityX:

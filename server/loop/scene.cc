@@ -78,9 +78,24 @@ std::string prepare_scene(const BodySpec& spec, const PrepareOptions& opt, Scene
   return {};
 }
 
+namespace {
+void start_factor_worker(Scene* scene) {
+  if (scene->workspace->factor)
+    scene->factor_worker = std::make_unique<FactorWorker>(scene->workspace->factor.get());
+}
+}  // namespace
+
 void reset_scene(Scene* scene) {
+  scene->factor_worker.reset();
   scene->state = make_state(*scene->model);
   scene->workspace = std::make_unique<Workspace>(*scene->model);
+  start_factor_worker(scene);
+}
+
+void scene_options_changed(Scene* scene) {
+  scene->factor_worker.reset();
+  options_changed(*scene->model, scene->state, *scene->workspace);
+  start_factor_worker(scene);
 }
 
 void ScenePreparer::start(std::string source, SceneLoader loader, PrepareOptions options,

@@ -15,6 +15,7 @@
 #include "core/body.h"
 #include "core/model.h"
 #include "core/step.h"
+#include "loop/factor_worker.h"
 #include "loop/messages.h"
 
 namespace conica::loop {
@@ -32,6 +33,9 @@ struct Scene {
   ProbeLimits limits;  // the body's box grown by the margin
   double step_us = 0;  // median step cost at rest, us
   std::vector<Note> notes;
+  // Renews the workspace's sparse factor (kFactorCG scenes), declared last: stopped before the
+  // workspace goes.
+  std::unique_ptr<FactorWorker> factor_worker;
 };
 
 struct PrepareOptions {
@@ -47,6 +51,10 @@ std::string prepare_scene(const BodySpec& spec, const PrepareOptions& options, S
 
 // The scene back at rest: a fresh State and Workspace (allocates).
 void reset_scene(Scene* scene);
+
+// conica::options_changed for the scene (after its model's options changed between ticks), with
+// the factor worker stopped while the workspace is rebuilt and started again after.
+void scene_options_changed(Scene* scene);
 
 // What a LoadScene came to: swapped in (ok) or refused, with preparation's notes either way.
 struct SceneReport {

@@ -1,0 +1,224 @@
+// The implicit system's sparse assembly and CHOLMOD factor (core/sparse_system.h).
+#include "core/sparse_system.h"
+
+#include <cholmod.h>
+
+#include <algorithm>
+#include <utility>
+
+#include "core/element_terms.h"
+#include "core/step.h"
+
+namespace conica {
+
+struct SystemFactor::Cholmod {
+  cholmod_common c;
+  cholmod_sparse* A = nullptr;
+  cholmod_factor* L = nullptr;
+  cholmod_dense* B = nullptr;
+  cholmod_dense* X = nullptr;
+  cholmod_dense* Y = nullptr;
+  cholmod_dense* E = nullptr;
+  Cholmod() {
+    cholmod_start(&c);
+    c.print = 0;  // the core prints nothing; failures are reported through the return value
+    c.error_handler = nullptr;
+  }
+  ~Cholmod() {
+    for (cholmod_dense** d : {&B, &X, &Y, &E})
+      if (*d) cholmod_free_dense(d, &c);
+    if (L) cholmod_free_factor(&L, &c);
+    if (A) cholmod_free_sparse(&A, &c);
+    cholmod_finish(&c);
+  }
+};
+
+SystemFactor::SystemFactor(const Model& m) : nn_(m.num_nodes()), c_(std::make_unique<Cholmod>()) {
+  const int nn = nn_, ns = m.num_springs();
+  // Block pattern: for every block column J the block rows I <= J that can be nonzero.
+  std::vector<std::vector<int>> cols(nn);
+  auto add = [&](int i, int j) {
+    if (i > j) std::swap(i, j);
+    cols[j].push_back(i);
+  };
+  for (int i = 0; i < nn; ++i) add(i, i);
+  for (int k = 0; k < ns; ++k) add(m.spring_i[k], m.spring_j[k]);
+  for_each_element(m, [&](auto, int, const auto& nodes) {
+    for (int a : nodes)
+      for (int b : nodes) add(a, b);
+  });
+  std::vector<int> start(nn + 1, 0), rows;
+  for (int j = 0; j < nn; ++j) {
+    std::sort(cols[j].begin(), cols[j].end());
+    cols[j].erase(std::unique(cols[j].begin(), cols[j].end()), cols[j].end());
+    rows.insert(rows.end(), cols[j].begin(), cols[j].end());
+    start[j + 1] = static_cast<int>(rows.size());
+  }
+  auto block = [&](int i, int j) {
+    if (i > j) std::swap(i, j);
+    return static_cast<int>(
+        std::lower_bound(rows.begin() + start[j], rows.begin() + start[j + 1], i) - rows.begin());
+  };
+  const int nb = static_cast<int>(rows.size());
+  blocks_.assign(9 * static_cast<size_t>(nb), 0.0);
+  diag_block_.resize(nn);
+  for (int i = 0; i < nn; ++i) diag_block_[i] = block(i, i);
+  spring_blocks_.resize(3 * static_cast<size_t>(ns));
+  for (int k = 0; k < ns; ++k) {
+    const int i = m.spring_i[k], j = m.spring_j[k];
+    spring_blocks_[3 * k] = block(i, i);
+    spring_blocks_[3 * k + 1] = block(j, j);
+    spring_blocks_[3 * k + 2] = block(i, j);
+  }
+  for_each_element(m, [&](auto n, int, const auto& nodes) {
+    constexpr int N = decltype(n)::value;
+    for (int a = 0; a < N; ++a)
+      for (int b = 0; b < N; ++b)
+        element_blocks_.push_back(nodes[a] <= nodes[b] ? block(nodes[a], nodes[b]) : -1);
+  });
+  free_.resize(3 * static_cast<size_t>(nn));
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) free_[c * nn + i] = m.free_axes[i][c];
+
+  // Scalar upper triangle in compressed columns: column 3 J + c holds, for every block (I, J) in
+  // row order, rows 3 I + r (r <= c on the diagonal block).
+  const int n = 3 * nn;
+  std::vector<int> colp(n + 1, 0), rowi;
+  for (int j = 0; j < nn; ++j)
+    for (int c = 0; c < 3; ++c) {
+      for (int b = start[j]; b < start[j + 1]; ++b) {
+        const int i = rows[b];
+        for (int r = 0; r < 3; ++r) {
+          if (i == j && r > c) continue;
+          const bool fr = m.free_axes[i][r] != 0, fc = m.free_axes[j][c] != 0;
+          rowi.push_back(3 * i + r);
+          src_.push_back(fr && fc ? 9 * b + 3 * r + c : (i == j && r == c) ? -1 : -2);
+        }
+      }
+      colp[3 * j + c + 1] = static_cast<int>(rowi.size());
+    }
+  cholmod_common& cc = c_->c;
+  c_->A = cholmod_allocate_sparse(n, n, rowi.size(), 1, 1, 1, CHOLMOD_REAL, &cc);
+  auto* p = static_cast<int*>(c_->A->p);
+  auto* ri = static_cast<int*>(c_->A->i);
+  std::copy(colp.begin(), colp.end(), p);
+  std::copy(rowi.begin(), rowi.end(), ri);
+  auto* x = static_cast<double*>(c_->A->x);
+  for (size_t k = 0; k < src_.size(); ++k) x[k] = src_[k] == -1 ? 1.0 : 0.0;
+  c_->L = cholmod_analyze(c_->A, &cc);
+  c_->B = cholmod_zeros(n, 1, CHOLMOD_REAL, &cc);
+}
+
+SystemFactor::~SystemFactor() = default;
+
+std::int64_t SystemFactor::nonzeros() const { return static_cast<std::int64_t>(src_.size()); }
+std::int64_t SystemFactor::factor_nonzeros() const { return static_cast<std::int64_t>(c_->c.lnz); }
+bool SystemFactor::supernodal() const { return c_->L && c_->L->is_super; }
+
+void SystemFactor::assemble(const Model& m, const Workspace& ws) {
+  const int nn = nn_, ns = m.num_springs();
+  double* __restrict bv = blocks_.data();
+  std::fill(blocks_.begin(), blocks_.end(), 0.0);
+  auto add_diag = [&](int b, double v) {
+    bv[9 * b] += v;
+    bv[9 * b + 4] += v;
+    bv[9 * b + 8] += v;
+  };
+  for (int i = 0; i < nn; ++i) add_diag(diag_block_[i], ws.system.mass[i]);
+  for (int q = 0; q < ws.contact.num_nodes; ++q) {
+    const int i = ws.contact.nodes[q];
+    const Vec3& cn = ws.contact.n[i];
+    const Mat3 b = cn * cn.transpose() + ws.system.h2 * ws.contact.block[i];
+    double* d = bv + 9 * diag_block_[i];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) d[3 * r + c] += b(r, c);
+  }
+  const double* alpha = ws.system.alpha.data();
+  const double* beta = ws.system.beta.data();
+  for (int k = 0; k < ns; ++k) {
+    const double u[3] = {ws.springs.ux[k], ws.springs.uy[k], ws.springs.uz[k]};
+    const double ab = alpha[k] - beta[k];
+    double B[9];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) B[3 * r + c] = ab * u[r] * u[c] + (r == c ? beta[k] : 0.0);
+    double* ii = bv + 9 * spring_blocks_[3 * k];
+    double* jj = bv + 9 * spring_blocks_[3 * k + 1];
+    double* ij = bv + 9 * spring_blocks_[3 * k + 2];
+    for (int t = 0; t < 9; ++t) {
+      ii[t] += B[t];
+      jj[t] += B[t];
+      ij[t] -= B[t];
+    }
+  }
+  const double h2 = ws.system.h2;
+  const int* eb = element_blocks_.data();
+  for_each_element(m, [&](auto n, int e, const auto&) {
+    constexpr int N = decltype(n)::value;
+    for (int a = 0; a < N; ++a)
+      for (int b = 0; b < N; ++b) {
+        const int id = eb[N * a + b];
+        if (id < 0) continue;
+        double H[3][3] = {};
+        for_each_term(m,
+                      [&](auto term) { term.template block<N>(m, ws.elements, h2, e, a, b, H); });
+        double* d = bv + 9 * id;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) d[3 * r + c] += H[r][c];
+      }
+    eb += N * N;
+  });
+  auto* x = static_cast<double*>(c_->A->x);
+  const int* src = src_.data();
+  const size_t nz = src_.size();
+  for (size_t k = 0; k < nz; ++k) x[k] = src[k] >= 0 ? bv[src[k]] : (src[k] == -1 ? 1.0 : 0.0);
+  factored_ = false;
+}
+
+bool SystemFactor::factorize() {
+  cholmod_common& cc = c_->c;
+  factored_ =
+      cholmod_factorize(c_->A, c_->L, &cc) && cc.status == CHOLMOD_OK && c_->L->minor == c_->L->n;
+  if (factored_) {
+    // One solve sizes the solution and the solve's workspaces, which later solves reuse.
+    std::fill_n(static_cast<double*>(c_->B->x), 3 * nn_, 0.0);
+    cholmod_solve2(CHOLMOD_A, c_->L, c_->B, nullptr, &c_->X, nullptr, &c_->Y, &c_->E, &cc);
+  }
+  return factored_;
+}
+
+void SystemFactor::solve(const double* r, double* z) {
+  const int nn = nn_;
+  auto* b = static_cast<double*>(c_->B->x);
+  const double* f = free_.data();
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) b[3 * i + c] = r[c * nn + i] * f[c * nn + i];
+  cholmod_solve2(CHOLMOD_A, c_->L, c_->B, nullptr, &c_->X, nullptr, &c_->Y, &c_->E, &c_->c);
+  const auto* x = static_cast<const double*>(c_->X->x);
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) z[c * nn + i] = x[3 * i + c] * f[c * nn + i];
+}
+
+void SystemFactor::multiply(const double* p, double* y) const {
+  const int nn = nn_, n = 3 * nn;
+  std::vector<double> pn(n), yn(n, 0.0);
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) pn[3 * i + c] = p[c * nn + i];
+  const auto* cp = static_cast<const int*>(c_->A->p);
+  const auto* ri = static_cast<const int*>(c_->A->i);
+  const auto* x = static_cast<const double*>(c_->A->x);
+  for (int col = 0; col < n; ++col)
+    for (int k = cp[col]; k < cp[col + 1]; ++k) {
+      const int row = ri[k];
+      yn[row] += x[k] * pn[col];
+      if (row != col) yn[col] += x[k] * pn[row];
+    }
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) y[c * nn + i] = yn[3 * i + c];
+}
+
+FactorScratch::FactorScratch(const Model& m)
+    : current(std::make_unique<SystemFactor>(m)),
+      next(std::make_unique<SystemFactor>(m)),
+      b(3 * static_cast<size_t>(m.num_nodes()), 0.0) {}
+
+}  // namespace conica

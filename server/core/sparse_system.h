@@ -1,0 +1,96 @@
+// The implicit system as a sparse matrix, and its Cholesky factor (CHOLMOD), for the
+// LinearSolver::kFactorCG preconditioner of the backward Euler step (core/implicit.cc).
+//
+// A is the matrix the matrix-free product applies (step.h, implicit.cc), over 3 n scalar
+// unknowns numbered node-major (3 i + c):
+//   A = M (1 + h mu)                                              (mass, per node)
+//     + sum_s  [+B_s on (i,i) and (j,j), -B_s on (i,j) and (j,i)],
+//              B_s = beta I + (alpha - beta) d d^T                 (springs)
+//     + sum_e  h^2 H_e                                             (element terms' blocks,
+//                                                                   core/element_terms.h)
+//     + n n^T + h^2 B_i per node in contact                        (plates, probe layers)
+// restricted to free axes: A_f = P A P + (I - P), P the free-axis mask, so that A_f is positive
+// definite and A_f^-1 r = A^-1 r on the free axes for r with no fixed component.
+//
+// The pattern (which node blocks can be nonzero: the diagonal, every spring's pair, every pair of
+// an element's nodes) is fixed when the Workspace is compiled, and so is CHOLMOD's symbolic
+// analysis (fill-reducing ordering, supernodes). Per factorisation only the values change:
+//   assemble()   values of A_f from the system the Newton iteration built: no allocation
+//   factorize()  numeric factorisation reusing the analysis: allocates inside CHOLMOD, so it
+//                runs off the step (a worker thread, loop/factor_worker.h) or, when the owner
+//                has no worker, inside the step that asked for it
+//   solve()      z = A_f^-1 r with preallocated workspaces: no allocation
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "core/model.h"
+
+namespace conica {
+
+struct Workspace;
+
+class SystemFactor {
+ public:
+  explicit SystemFactor(const Model& m);  // the pattern and the symbolic analysis (allocates)
+  ~SystemFactor();
+  SystemFactor(const SystemFactor&) = delete;
+  SystemFactor& operator=(const SystemFactor&) = delete;
+
+  // The values of A_f at the system ws.system, ws.elements and ws.contact describe (after the
+  // Newton iteration's coefficients and prepare_system).
+  void assemble(const Model& m, const Workspace& ws);
+  // Numeric factorisation of the assembled values; false when A_f is not positive definite
+  // (the factor is then unusable).
+  bool factorize();
+  bool factored() const { return factored_; }
+  // z = A_f^-1 r, component-major vectors of 3 n entries; z is zero on fixed axes.
+  void solve(const double* r, double* z);
+  // y = A_f p with the assembled values (component-major), for tests.
+  void multiply(const double* p, double* y) const;
+
+  int num_unknowns() const { return 3 * nn_; }
+  std::int64_t nonzeros() const;         // upper triangle of A_f
+  std::int64_t factor_nonzeros() const;  // of the factor L
+  bool supernodal() const;
+
+ private:
+  struct Cholmod;  // CHOLMOD's handles, kept out of this header
+  int nn_ = 0;
+  std::vector<int> spring_blocks_;   // (3 num_springs): blocks (i,i), (j,j), (min,max)
+  std::vector<int> element_blocks_;  // per element (tetrahedra, then hexahedra) N x N block
+                                     // ids of its node pairs (a, b), -1 where node a > node b
+  std::vector<int> diag_block_;      // (num_nodes)
+  std::vector<double> blocks_;       // (9 num_blocks) row-major 3 x 3 values
+  std::vector<int> src_;             // (nonzeros) the block entry of each CSC entry, -1: a fixed
+                                     // axis's unit diagonal, -2: zero (a fixed axis's coupling)
+  std::vector<double> free_;         // (3 num_nodes) component-major free-axis mask
+  std::unique_ptr<Cholmod> c_;
+  bool factored_ = false;
+};
+
+// The kFactorCG solver's state in the Workspace: the factor in use and the next one, which is
+// assembled by the step and factored by a worker thread (or by the step when there is none),
+// handed over through `next_state`.
+struct FactorScratch {
+  enum : int {
+    kIdle = 0,       // `next` belongs to the step
+    kAssembled = 1,  // `next` holds new values and belongs to the worker until it is factored
+    kFactored = 2,   // the worker is done: the step swaps it in
+    kFailed = 3,     // the worker's factorisation failed: the step counts it, back to kIdle
+    kStop = 4,       // the worker ends
+  };
+  explicit FactorScratch(const Model& m);
+  std::unique_ptr<SystemFactor> current;  // what CG preconditions with (factored() or not)
+  std::unique_ptr<SystemFactor> next;
+  std::atomic<int> next_state{kIdle};
+  bool worker = false;    // set by the owner: a worker thread factors `next` (loop/factor_worker.h)
+  int age = 0;            // steps since `current` was assembled
+  bool wanted = true;     // a new factor is wanted at the next Newton iteration
+  std::vector<double> b;  // (3 num_nodes) scratch
+};
+
+}  // namespace conica

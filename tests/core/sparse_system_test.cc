@@ -1,0 +1,226 @@
+// The implicit system assembled as a sparse matrix (core/sparse_system.h) against the matrix-free
+// product the Newton iteration uses (which tests/core/implicit_test.cc checks against a central
+// difference of the forces), its Cholesky solve against that product and against a dense Eigen
+// solve, and the kFactorCG step against a converged block-Jacobi CG step.
+#include "core/sparse_system.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <random>
+#include <vector>
+
+#include "core/body.h"
+#include "core/step.h"
+#include "core/step_detail.h"
+#include "lattice_meshes.h"
+
+namespace conica {
+namespace {
+
+using testing_meshes::Tetrahedralised;
+
+// A 20 x 20 x 15 mm block of the EF30 card with volume, spread (hexahedra) and shear terms on a
+// frictionless base, pressed by a probe (node contact) and by a side plate; hexahedra or
+// tetrahedra. kFactorCG unless `jacobi`.
+Model Block(bool tets, bool jacobi = false) {
+  BodySpec b;
+  b.mesh = make_box_lattice(Vec3(0.02, 0.02, 0.015), {4, 4, 3});
+  if (tets) b.mesh = Tetrahedralised(b.mesh);
+  b.density = 1070;
+  SpringCard c;
+  c.conical = ConicalCard{
+      2.0638952894602549e9, 1.6662609498394193e-3, 4.8853058085019819e-3, 8e-3, 10e-3, 3};
+  c.stiffness_cap = 1000;
+  c.damping = 1e-3;
+  b.groups.push_back({"silicone", c, kAllFamilies, {}, Vec3::Zero(), 10});
+  b.bulk_modulus = 137052.6;
+  b.spread_modulus = tets ? 0 : 137052.6;
+  b.shear_modulus = 15613.6;
+  FixedSelector base;
+  base.kind = FixedSelector::Kind::kPlane;
+  base.axes = 4;  // z only: the base slides
+  b.fixed.push_back(base);
+  FixedSelector corner;
+  corner.kind = FixedSelector::Kind::kBox;
+  corner.box_min = Vec3(-1e-4, -1e-4, -1e-4);
+  corner.box_max = Vec3(1e-4, 1e-4, 1e-4);
+  corner.axes = 3;
+  b.fixed.push_back(corner);
+  PlaneSpec plate;  // pushes the x = 20 mm face in by 0.4 mm
+  plate.normal = Vec3(-1, 0, 0);
+  plate.offset = -0.0196;
+  b.planes = {plate};
+  b.probes.push_back(ProbeSpec{0.006, 0});
+  b.options.integrator = Integrator::kImplicitEuler;
+  b.options.linear_solver = jacobi ? LinearSolver::kBlockJacobiCG : LinearSolver::kFactorCG;
+  b.options.mass_damping = 20;
+  Model m;
+  EXPECT_EQ(build_model(b, &m), "");
+  return m;
+}
+
+// The probe pressed `depth` into the top centre.
+void Press(State& s, double depth) { set_probe(s, 0, Vec3(0.01, 0.01, 0.015 + 0.006 - depth)); }
+
+// A pressed state: 40 steps of the block-Jacobi solver while the probe goes 3 mm deep.
+State Pressed(const Model& m) {
+  Model j = m;
+  j.options.linear_solver = LinearSolver::kBlockJacobiCG;
+  State s = make_state(j);
+  Workspace ws(j);
+  for (int k = 0; k < 40; ++k) {
+    Press(s, 3e-3 * (k + 1) / 40);
+    step(j, s, ws);
+  }
+  return s;
+}
+
+std::vector<double> Random(const Model& m, unsigned seed) {
+  const int nn = m.num_nodes();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<double> p(3 * nn);
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) p[c * nn + i] = u(rng) * m.free_axes[i][c];
+  return p;
+}
+
+double MaxAbs(const std::vector<double>& v) {
+  double a = 0;
+  for (double x : v) a = std::max(a, std::abs(x));
+  return a;
+}
+
+class SparseSystemTest : public ::testing::TestWithParam<bool> {};
+
+TEST_P(SparseSystemTest, AssembledMatrixTimesAVectorIsTheMatrixFreeProduct) {
+  const Model m = Block(GetParam());
+  State s = Pressed(m);
+  Workspace ws(m);
+  ASSERT_TRUE(ws.factor);
+  const int n3 = 3 * m.num_nodes();
+  // The premise: probe and plate in contact, springs in compression (the clamped geometric
+  // term), every element term present.
+  for (int seed : {1, 2, 3}) {
+    const std::vector<double> p = Random(m, seed);
+    std::vector<double> y(n3), ya(n3);
+    detail::system_product(m, s, ws, m.options.dt, p.data(), y.data());
+    ASSERT_GT(ws.contact.num_nodes, 0);
+    ws.factor->current->assemble(m, ws);
+    ws.factor->current->multiply(p.data(), ya.data());
+    std::vector<double> d(n3);
+    for (int k = 0; k < n3; ++k) d[k] = ya[k] - y[k];
+    EXPECT_LT(MaxAbs(d), 1e-12 * MaxAbs(y)) << "seed " << seed;
+  }
+  EXPECT_GT(ws.factor->current->factor_nonzeros(), ws.factor->current->nonzeros());
+}
+
+TEST_P(SparseSystemTest, FactorSolveInvertsTheMatrixFreeSystemLikeADenseSolve) {
+  const Model m = Block(GetParam());
+  State s = Pressed(m);
+  Workspace ws(m);
+  const int nn = m.num_nodes(), n3 = 3 * nn;
+  // The dense matrix from the matrix-free product, column by column, on the free axes.
+  std::vector<int> free;
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < nn; ++i)
+      if (m.free_axes[i][c]) free.push_back(c * nn + i);
+  const int nf = static_cast<int>(free.size());
+  Eigen::MatrixXd A(nf, nf);
+  std::vector<double> e(n3, 0.0), y(n3);
+  for (int q = 0; q < nf; ++q) {
+    e[free[q]] = 1;
+    detail::system_product(m, s, ws, m.options.dt, e.data(), y.data());
+    e[free[q]] = 0;
+    for (int r = 0; r < nf; ++r) A(r, q) = y[free[r]];
+  }
+  ws.factor->current->assemble(m, ws);
+  ASSERT_TRUE(ws.factor->current->factorize());
+  const std::vector<double> r = Random(m, 9);
+  std::vector<double> z(n3);
+  ws.factor->current->solve(r.data(), z.data());
+  Eigen::VectorXd rf(nf);
+  for (int q = 0; q < nf; ++q) rf[q] = r[free[q]];
+  const Eigen::VectorXd zd = A.ldlt().solve(rf);
+  double err = 0;
+  for (int q = 0; q < nf; ++q) err = std::max(err, std::abs(z[free[q]] - zd[q]));
+  EXPECT_LT(err, 1e-9 * zd.cwiseAbs().maxCoeff());
+  // And A z = r through the matrix-free product; z vanishes on fixed axes.
+  detail::system_product(m, s, ws, m.options.dt, z.data(), y.data());
+  std::vector<double> res(n3);
+  for (int k = 0; k < n3; ++k) res[k] = y[k] - r[k];
+  EXPECT_LT(MaxAbs(res), 1e-9 * MaxAbs(r));
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c)
+      if (!m.free_axes[i][c]) {
+        EXPECT_EQ(z[c * nn + i], 0.0);
+      }
+}
+
+// One Newton step, solved by CG with a fresh factor and by block-Jacobi CG run to convergence.
+TEST_P(SparseSystemTest, PreconditionedSolveReachesTheConvergedNewtonStep) {
+  Model mf = Block(GetParam());
+  Model mj = Block(GetParam(), true);
+  for (Model* m : {&mf, &mj}) {
+    m->options.newton_iterations = 1;
+    m->options.cg_tolerance = 1e-13;
+  }
+  mj.options.cg_iterations = 5000;
+  const State s0 = Pressed(mf);
+  State sf = s0, sj = s0;
+  Workspace wf(mf), wj(mj);
+  Press(sf, 3.2e-3);
+  Press(sj, 3.2e-3);
+  step(mf, sf, wf);
+  step(mj, sj, wj);
+  EXPECT_EQ(sf.counters.factorizations, 1u);
+  EXPECT_LE(sf.counters.cg_iterations - s0.counters.cg_iterations, 3u);
+  EXPECT_GT(sj.counters.cg_iterations - s0.counters.cg_iterations, 30u);
+  double diff = 0, motion = 0;
+  for (int i = 0; i < mf.num_nodes(); ++i) {
+    diff = std::max(diff, (sf.x[i] - sj.x[i]).norm());
+    motion = std::max(motion, (sj.x[i] - s0.x[i]).norm());
+  }
+  ASSERT_GT(motion, 0);
+  EXPECT_LT(diff, 1e-8 * motion);
+}
+
+// A press with the factor renewed only on demand: the trajectory is the converged one and CG
+// takes a few iterations per Newton iteration with a factor many steps old.
+TEST_P(SparseSystemTest, StaleFactorKeepsTheConvergedTrajectoryInFewIterations) {
+  Model mf = Block(GetParam());
+  Model mj = Block(GetParam(), true);
+  for (Model* m : {&mf, &mj}) m->options.cg_tolerance = 1e-10;
+  mj.options.cg_iterations = 5000;
+  mf.options.cg_iterations = 100;
+  State sf = make_state(mf), sj = make_state(mj);
+  Workspace wf(mf), wj(mj);
+  constexpr int kSteps = 120;
+  for (int k = 0; k < kSteps; ++k) {
+    const double depth = 4e-3 * std::min(1.0, (k + 1) / 80.0);
+    Press(sf, depth);
+    Press(sj, depth);
+    step(mf, sf, wf);
+    step(mj, sj, wj);
+  }
+  double diff = 0, motion = 0;
+  for (int i = 0; i < mf.num_nodes(); ++i) {
+    diff = std::max(diff, (sf.x[i] - sj.x[i]).norm());
+    motion = std::max(motion, (sj.x[i] - mf.rest[i]).norm());
+  }
+  EXPECT_LT(diff, 1e-6 * motion);
+  EXPECT_LT((sf.probes[0].force - sj.probes[0].force).norm(), 1e-6 * sj.probes[0].force.norm());
+  const double per_solve =
+      double(sf.counters.cg_iterations) / (kSteps * mf.options.newton_iterations);
+  EXPECT_LE(per_solve, mf.options.refactor_iterations + 1.0);
+  EXPECT_LT(sf.counters.factorizations, kSteps / 2u);  // 37-38 here, during the ramp
+  EXPECT_EQ(sf.counters.factor_failures, 0u);
+  EXPECT_EQ(sf.counters.rollbacks, 0u);
+}
+
+INSTANTIATE_TEST_SUITE_P(HexahedraTetrahedra, SparseSystemTest, ::testing::Bool(),
+                         [](const auto& info) { return info.param ? "tets" : "hexes"; });
+
+}  // namespace
+}  // namespace conica
