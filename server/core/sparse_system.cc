@@ -105,6 +105,9 @@ SystemFactor::SystemFactor(const Model& m) : nn_(m.num_nodes()), c_(std::make_un
   std::copy(rowi.begin(), rowi.end(), ri);
   auto* x = static_cast<double*>(c_->A->x);
   for (size_t k = 0; k < src_.size(); ++k) x[k] = src_[k] == -1 ? 1.0 : 0.0;
+  // Simplicial: CG pays a solve per iteration and the factorisation runs off the step; on the
+  // bodies measured (docs/performance.md) the simplicial solve is the faster one.
+  cc.supernodal = CHOLMOD_SIMPLICIAL;
   c_->L = cholmod_analyze(c_->A, &cc);
   c_->B = cholmod_zeros(n, 1, CHOLMOD_REAL, &cc);
 }
