@@ -27,3 +27,5 @@ apt_ensure setup "${PACKAGES[@]}"
 BUILD_DIR=${BUILD_DIR:-build}
 cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=${BUILD_TYPE:-Release} "$@" >/dev/null
 cmake --build "$BUILD_DIR" -j"$(nproc)"
+# The finer liver of configs/liver-fine-ef30.pbtxt (TetGen from liver2.msh's boundary).
+scripts/mesh-liver-fine.sh "$BUILD_DIR/meshes/liver-fine.msh"
