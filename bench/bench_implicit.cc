@@ -98,12 +98,12 @@ void Report(const char* name, const Run& r, const Run& ref) {
     ++n;
   }
   const double solves = static_cast<double>(r.step_us.size()) * r.newton;
-  std::printf("| %s | %.0f | %.0f | %.0f | %.0f | %.0f | %.0f | %.1f | %llu | %.2g %% | %.2g %% |\n",
-              name, Percentile(r.cpu_us, 0.5), Percentile(r.cpu_us, 0.99),
-              Percentile(r.cpu_us, 1.0), Percentile(r.step_us, 0.5), Percentile(r.step_us, 0.99),
-              Percentile(r.step_us, 1.0), r.counters.cg_iterations / solves,
-              static_cast<unsigned long long>(r.counters.factorizations),
-              100 * std::sqrt(num / std::max(den, 1e-300)), 100 * worst);
+  std::printf(
+      "| %s | %.0f | %.0f | %.0f | %.0f | %.0f | %.0f | %.1f | %llu | %.2g %% | %.2g %% |\n", name,
+      Percentile(r.cpu_us, 0.5), Percentile(r.cpu_us, 0.99), Percentile(r.cpu_us, 1.0),
+      Percentile(r.step_us, 0.5), Percentile(r.step_us, 0.99), Percentile(r.step_us, 1.0),
+      r.counters.cg_iterations / solves, static_cast<unsigned long long>(r.counters.factorizations),
+      100 * std::sqrt(num / std::max(den, 1e-300)), 100 * worst);
   if (std::getenv("BENCH_PHASES")) {
     std::printf("  per 100 ticks (mean us):");
     for (size_t k = 0; k < r.step_us.size(); k += 100) {
@@ -133,11 +133,16 @@ int main(int argc, char** argv) {
   std::string path;
   for (int a = 1; a < argc; ++a) {
     const std::string o = argv[a];
-    if (o == "--depth" && a + 1 < argc) depth = std::atof(argv[++a]);
-    else if (o == "--up" && a + 1 < argc) up = argv[++a][0] - 'x';
-    else if (o == "--jacobi-newton" && a + 1 < argc) jn = std::atoi(argv[++a]);
-    else if (o == "--jacobi-cg" && a + 1 < argc) jc = std::atoi(argv[++a]);
-    else path = o;
+    if (o == "--depth" && a + 1 < argc)
+      depth = std::atof(argv[++a]);
+    else if (o == "--up" && a + 1 < argc)
+      up = argv[++a][0] - 'x';
+    else if (o == "--jacobi-newton" && a + 1 < argc)
+      jn = std::atoi(argv[++a]);
+    else if (o == "--jacobi-cg" && a + 1 < argc)
+      jc = std::atoi(argv[++a]);
+    else
+      path = o;
   }
   BodySpec spec;
   if (std::string e = io::load_scene(path, &spec); !e.empty()) {
@@ -160,13 +165,13 @@ int main(int argc, char** argv) {
   if (jc > 0) jac.options.cg_iterations = jc;
   {
     Workspace ws(m);
-    std::printf("%s: %d nodes, %d springs, %zu tetrahedra, %zu hexahedra; %d unknowns, %lld "
-                "nonzeros in A (upper), %lld in L (%s); press %.1f mm\n",
-                path.c_str(), m.num_nodes(), m.num_springs(), m.tetrahedra.size(),
-                m.hexahedra.size(), ws.factor->current->num_unknowns(),
-                static_cast<long long>(ws.factor->current->nonzeros()),
-                static_cast<long long>(ws.factor->current->factor_nonzeros()),
-                ws.factor->current->supernodal() ? "supernodal" : "simplicial", 1e3 * depth);
+    std::printf(
+        "%s: %d nodes, %d springs, %zu tetrahedra, %zu hexahedra; %d unknowns, %lld "
+        "nonzeros in A (upper), %lld in L (%s); press %.1f mm\n",
+        path.c_str(), m.num_nodes(), m.num_springs(), m.tetrahedra.size(), m.hexahedra.size(),
+        ws.factor->current->num_unknowns(), static_cast<long long>(ws.factor->current->nonzeros()),
+        static_cast<long long>(ws.factor->current->factor_nonzeros()),
+        ws.factor->current->supernodal() ? "supernodal" : "simplicial", 1e3 * depth);
   }
   const Run r_ref = Simulate(ref, up, depth, false);
   const Run r_jac = Simulate(jac, up, depth, false);

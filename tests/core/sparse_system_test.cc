@@ -4,16 +4,51 @@
 // solve, and the kFactorCG step against a converged block-Jacobi CG step.
 #include "core/sparse_system.h"
 
+#include <SuiteSparse_config.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <chrono>
+#include <cstdlib>
+#include <new>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include "core/body.h"
 #include "core/step.h"
 #include "core/step_detail.h"
 #include "lattice_meshes.h"
+#include "loop/factor_worker.h"
+
+// Allocations made on a thread while it counts (operator new and CHOLMOD's malloc).
+namespace {
+thread_local bool t_counting = false;
+thread_local long t_allocations = 0;
+void* counting_malloc(std::size_t n) {
+  if (t_counting) ++t_allocations;
+  return std::malloc(n);
+}
+void* counting_calloc(std::size_t n, std::size_t k) {
+  if (t_counting) ++t_allocations;
+  return std::calloc(n, k);
+}
+void* counting_realloc(void* p, std::size_t n) {
+  if (t_counting) ++t_allocations;
+  return std::realloc(p, n);
+}
+}  // namespace
+
+void* operator new(std::size_t n) {
+  if (t_counting) ++t_allocations;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n) { return operator new(n); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 namespace conica {
 namespace {
@@ -217,6 +252,37 @@ TEST_P(SparseSystemTest, StaleFactorKeepsTheConvergedTrajectoryInFewIterations) 
   EXPECT_LT(sf.counters.factorizations, kSteps / 2u);  // 37-38 here, during the ramp
   EXPECT_EQ(sf.counters.factor_failures, 0u);
   EXPECT_EQ(sf.counters.rollbacks, 0u);
+}
+
+// With a worker thread factoring, the stepping thread allocates nothing, CHOLMOD included, and
+// the factors the worker hands over are taken into use.
+TEST(SparseFactorWorkerTest, StepAllocatesNothingWhileAWorkerFactors) {
+  SuiteSparse_config.malloc_func = counting_malloc;
+  SuiteSparse_config.calloc_func = counting_calloc;
+  SuiteSparse_config.realloc_func = counting_realloc;
+  const Model m = Block(true);
+  State s = make_state(m);
+  Workspace ws(m);
+  long allocations = 0;
+  {
+    loop::FactorWorker worker(ws.factor.get());
+    for (int k = 0; k < 200; ++k) {
+      Press(s, 3e-3 * std::min(1.0, (k + 1) / 100.0));
+      t_counting = true;
+      step(m, s, ws);
+      t_counting = false;
+      if (k > 0) allocations += t_allocations;  // the first step's assembly sizes nothing either
+      t_allocations = 0;
+      std::this_thread::sleep_for(std::chrono::microseconds(200));  // a 1 kHz loop's rest
+    }
+  }
+  SuiteSparse_config.malloc_func = std::malloc;
+  SuiteSparse_config.calloc_func = std::calloc;
+  SuiteSparse_config.realloc_func = std::realloc;
+  EXPECT_EQ(allocations, 0);
+  EXPECT_GE(s.counters.factorizations, 2u);
+  EXPECT_EQ(s.counters.factor_failures, 0u);
+  EXPECT_EQ(s.counters.rollbacks, 0u);
 }
 
 INSTANTIATE_TEST_SUITE_P(HexahedraTetrahedra, SparseSystemTest, ::testing::Bool(),
