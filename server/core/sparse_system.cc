@@ -110,6 +110,7 @@ SystemFactor::SystemFactor(const Model& m) : nn_(m.num_nodes()), c_(std::make_un
   cc.supernodal = CHOLMOD_SIMPLICIAL;
   c_->L = cholmod_analyze(c_->A, &cc);
   c_->B = cholmod_zeros(n, 1, CHOLMOD_REAL, &cc);
+  work_.assign(n, 0.0);
 }
 
 SystemFactor::~SystemFactor() = default;
@@ -181,24 +182,40 @@ bool SystemFactor::factorize() {
   cholmod_common& cc = c_->c;
   factored_ =
       cholmod_factorize(c_->A, c_->L, &cc) && cc.status == CHOLMOD_OK && c_->L->minor == c_->L->n;
-  if (factored_) {
-    // One solve sizes the solution and the solve's workspaces, which later solves reuse.
-    std::fill_n(static_cast<double*>(c_->B->x), 3 * nn_, 0.0);
-    cholmod_solve2(CHOLMOD_A, c_->L, c_->B, nullptr, &c_->X, nullptr, &c_->Y, &c_->E, &cc);
-  }
+  // solve() reads a simplicial LDL^T factor (the analysis asked for one).
+  factored_ = factored_ && !c_->L->is_super && !c_->L->is_ll;
   return factored_;
 }
 
+// z = P^T L^-T D^-1 L^-1 P r with the simplicial LDL^T factor read in place (CHOLMOD's layout:
+// column j's first entry is D(j), the unit diagonal of L is not stored): no allocation.
 void SystemFactor::solve(const double* r, double* z) {
-  const int nn = nn_;
-  auto* b = static_cast<double*>(c_->B->x);
+  const int nn = nn_, n = 3 * nn;
+  const cholmod_factor* L = c_->L;
+  const auto* perm = static_cast<const int*>(L->Perm);
+  const auto* lp = static_cast<const int*>(L->p);
+  const auto* li = static_cast<const int*>(L->i);
+  const auto* lnz = static_cast<const int*>(L->nz);
+  const auto* lx = static_cast<const double*>(L->x);
+  double* __restrict b = static_cast<double*>(c_->B->x);
+  double* __restrict x = work_.data();
   const double* f = free_.data();
   for (int i = 0; i < nn; ++i)
     for (int c = 0; c < 3; ++c) b[3 * i + c] = r[c * nn + i] * f[c * nn + i];
-  cholmod_solve2(CHOLMOD_A, c_->L, c_->B, nullptr, &c_->X, nullptr, &c_->Y, &c_->E, &c_->c);
-  const auto* x = static_cast<const double*>(c_->X->x);
+  for (int k = 0; k < n; ++k) x[k] = b[perm[k]];
+  for (int j = 0; j < n; ++j) {
+    const double xj = x[j];
+    for (int q = lp[j] + 1; q < lp[j] + lnz[j]; ++q) x[li[q]] -= lx[q] * xj;
+  }
+  for (int j = 0; j < n; ++j) x[j] /= lx[lp[j]];
+  for (int j = n - 1; j >= 0; --j) {
+    double xj = x[j];
+    for (int q = lp[j] + 1; q < lp[j] + lnz[j]; ++q) xj -= lx[q] * x[li[q]];
+    x[j] = xj;
+  }
+  for (int k = 0; k < n; ++k) b[perm[k]] = x[k];
   for (int i = 0; i < nn; ++i)
-    for (int c = 0; c < 3; ++c) z[c * nn + i] = x[3 * i + c] * f[c * nn + i];
+    for (int c = 0; c < 3; ++c) z[c * nn + i] = b[3 * i + c] * f[c * nn + i];
 }
 
 void SystemFactor::multiply(const double* p, double* y) const {

@@ -19,7 +19,7 @@
 //   factorize()  numeric factorisation reusing the analysis: allocates inside CHOLMOD, so it
 //                runs off the step (a worker thread, loop/factor_worker.h) or, when the owner
 //                has no worker, inside the step that asked for it
-//   solve()      z = A_f^-1 r with preallocated workspaces: no allocation
+//   solve()      z = A_f^-1 r by the factor's triangular solves, in place: no allocation
 #pragma once
 
 #include <atomic>
@@ -68,6 +68,7 @@ class SystemFactor {
   std::vector<int> src_;             // (nonzeros) the block entry of each CSC entry, -1: a fixed
                                      // axis's unit diagonal, -2: zero (a fixed axis's coupling)
   std::vector<double> free_;         // (3 num_nodes) component-major free-axis mask
+  std::vector<double> work_;         // (3 num_nodes) the solve's permuted vector
   std::unique_ptr<Cholmod> c_;
   bool factored_ = false;
 };
