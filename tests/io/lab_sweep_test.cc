@@ -21,6 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using testing::run_lab;
+using testing::slurp;
 
 fs::path Temp(const std::string& name) {
   const fs::path p =
@@ -29,13 +30,6 @@ fs::path Temp(const std::string& name) {
   fs::remove_all(p.string() + ".units");
   fs::remove(p.string() + ".csv");
   return p;
-}
-
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // The CSV without the columns named in `drop`.
@@ -65,7 +59,7 @@ TEST(LabSweep, StabilityShardsAndMergeEqualOneProcessByteForByte) {
   auto r = run_lab(kStability + "'" + one.string() + "'");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("[41/41] unit 40 done"));
-  const std::string single = Slurp(one.string() + ".csv");
+  const std::string single = slurp(one.string() + ".csv");
   ASSERT_GT(single.size(), 1000u);
   for (int i = 0; i < 3; ++i) {
     r = run_lab(kStability + "'" + sh.string() + "' --shard " + std::to_string(i) + "/3");
@@ -75,7 +69,7 @@ TEST(LabSweep, StabilityShardsAndMergeEqualOneProcessByteForByte) {
   }
   r = run_lab(kStability + "'" + sh.string() + "' --merge");
   ASSERT_EQ(r.status, 0) << r.output;
-  EXPECT_EQ(Slurp(sh.string() + ".csv"), single);
+  EXPECT_EQ(slurp(sh.string() + ".csv"), single);
 }
 
 TEST(LabSweep, ARerunResumesTheMergeNamesWhatIsMissingOtherOptionsAreRefused) {
@@ -116,7 +110,7 @@ TEST(LabSweep, TradeoffShardsAndMergeEqualOneProcessApartFromWallTimes) {
   r = run_lab(t + "'" + sh.string() + "' --merge");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("Pareto front"));
-  const std::string a = Slurp(one.string() + ".csv"), b = Slurp(sh.string() + ".csv");
+  const std::string a = slurp(one.string() + ".csv"), b = slurp(sh.string() + ".csv");
   ASSERT_GT(a.size(), 500u);
   EXPECT_EQ(Without(a, {"step_us", "cpu_us"}), Without(b, {"step_us", "cpu_us"}));
   EXPECT_NE(Without(a, {}), Without(b, {})) << "wall times measured twice are never equal";
