@@ -113,14 +113,15 @@ void BM_SurfaceContactDrag(benchmark::State& state) {
       static_cast<double>(cand.passes) / static_cast<double>(state.iterations());
 }
 
-// Radii in 0.1 mm: 2.5 mm (a quarter of the spacing), 10, 20, 40 mm, and 55 mm (about fifty
-// faces).
+// Radii in 0.1 mm: 2.5 mm (a quarter of the spacing), 10, 20, 40 mm, 55 and 60 mm (about fifty
+// and sixty-five faces).
 BENCHMARK(BM_SurfaceContactStage)
     ->Arg(25)
     ->Arg(100)
     ->Arg(200)
     ->Arg(400)
     ->Arg(550)
+    ->Arg(600)
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_SurfaceContactDrag)->Arg(25)->Arg(100)->Arg(550)->Unit(benchmark::kMicrosecond);
 

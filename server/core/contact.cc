@@ -184,8 +184,9 @@ void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&&
         if (t > 0 && t < 1) breaks[nb++] = t;
     }
     breaks[nb++] = 1;
-    // Polar coordinates about O on each piece: rays at angle theta (two panels of at most 90
-    // degrees), out to the edge or the rim, whichever the piece has as its boundary.
+    // Polar coordinates about O on each piece: rays at angle theta (one panel: a piece spans
+    // less than 180 degrees, and a second panel changes the force on a flat face by less than
+    // 1e-5), out to the edge or the rim, whichever the piece has as its boundary.
     const double along_edge = A.cross(D).dot(n);
     for (int piece = 0; piece + 1 < nb; ++piece) {
       const double t0 = breaks[piece], t1 = breaks[piece + 1];
@@ -197,7 +198,7 @@ void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&&
       // The piece's boundary: the rim when its midpoint lies outside the disc, else the edge.
       const bool rim = (Qa + 0.5 * (t0 + t1) * D).squaredNorm() > a2;
       // A fixed rule per piece, so the integral is continuous as the tool moves.
-      constexpr int panels = 2;
+      constexpr int panels = 1;
       for (int pn = 0; pn < panels; ++pn)
         for (int i = 0; i < kGauss; ++i) {
           Vec3 w;     // the ray's direction (rim) or its end on the edge (edge)
