@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # CI: a one-node Slurm cluster on localhost (munged, slurmctld, slurmd; Debian's slurm-wlm and
 # munge, installed by scripts/setup.sh) runs a 4-shard library sweep as a job array
-# (calibrate-library.sbatch) and its merge (merge-library.sbatch); the merged library must equal
-# a single-process run of the same sweep byte for byte. A small, fast setting (four recipes,
+# (calibrate-library.sbatch) and its merge (merge-library.sbatch), then a 3-shard stability map
+# (lab-sweep.sbatch, lab-merge.sbatch); each merged result must equal a single-process run of
+# the same sweep byte for byte. A small, fast setting (four recipes,
 # cell surrogate only, 12 points, one Poisson ratio) keeps it to seconds. Needs root (the daemons). Run from
 # anywhere: scripts/slurm/ci-cluster.sh [BUILD_DIR]
 set -euo pipefail
@@ -89,3 +90,19 @@ cat "$work"/conica-library-*.out
 "$lab" library "${args[@]}" --out "$work/single" --merge >/dev/null
 diff -r -x logs "$work/single" "$work/cluster"
 echo "ci-cluster: 4-shard Slurm library equals the single-process one ($(ls "$work/cluster"/*.card | wc -l) cards)"
+
+# A stability map (short runs) as a 3-task array and its merge, against one process.
+stab=(stability --seconds 0.005 --no-plot)
+array=$(sbatch --parsable --array=0-2 --cpus-per-task=1 \
+  "$OLDPWD/scripts/slurm/lab-sweep.sbatch" "${stab[@]}" --out "$work/stab-cluster")
+merge=$(sbatch --parsable --dependency=afterok:"$array" \
+  "$OLDPWD/scripts/slurm/lab-merge.sbatch" "${stab[@]}" --out "$work/stab-cluster")
+for _ in $(seq 240); do
+  [[ -z $(squeue -h -j "$array,$merge" 2>/dev/null) ]] && break
+  sleep 0.5
+done
+cat "$work"/conica-sweep-*.out
+[[ -f $work/stab-cluster.csv ]] || { echo "ci-cluster: the stability merge wrote no CSV"; cat "$work"/log/*; exit 1; }
+"$lab" "${stab[@]}" --out "$work/stab-single" >/dev/null
+cmp "$work/stab-single.csv" "$work/stab-cluster.csv"
+echo "ci-cluster: 3-shard Slurm stability map equals the single-process one ($(($(wc -l < "$work/stab-cluster.csv") - 1)) rows)"

@@ -7,6 +7,7 @@
 #include <map>
 
 #include "core/step.h"
+#include "lab/quasi_static.h"
 
 namespace conica::lab {
 namespace {
@@ -105,17 +106,18 @@ double layer_spread(const Model& model, const std::vector<Vec3>& x) {
 namespace {
 
 // What a compression run reports of itself (CompressionStats) from its final state.
-void fill_stats(const Model& m, const State& s, double plate_stiffness, double dt, double max_pen,
-                long steps, double step_time, CompressionStats* stats) {
+void fill_stats(const Model& m, const std::vector<Vec3>& x, const Counters& counters,
+                double plate_stiffness, double dt, double max_pen, long steps, double step_time,
+                CompressionStats* stats) {
   stats->steps = steps;
   stats->dt = dt;
   stats->plate_stiffness = plate_stiffness;
   stats->max_penetration = max_pen;
-  stats->rollbacks = s.counters.rollbacks;
-  stats->hard_stops = s.counters.hard_stops;
+  stats->rollbacks = counters.rollbacks;
+  stats->hard_stops = counters.hard_stops;
   stats->step_seconds = steps ? step_time / static_cast<double>(steps) : 0;
-  stats->positions = s.x;
-  stats->layer_spread = layer_spread(m, s.x);
+  stats->positions = x;
+  stats->layer_spread = layer_spread(m, x);
   const Axis a = body_axis(m);
   stats->half_width = 0;
   for (const Vec3& r : m.rest)
@@ -157,7 +159,7 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
     out[i].displacement = travel * i / samples;
     out[i].force = interpolate(u, f, out[i].displacement);
   }
-  if (stats) fill_stats(m, s, plate.stiffness, dt, max_pen, steps, step_time, stats);
+  if (stats) fill_stats(m, s.x, s.counters, plate.stiffness, dt, max_pen, steps, step_time, stats);
   return out;
 }
 
@@ -165,70 +167,36 @@ Curve static_compression_curve(const Model& model, double to_strain, int samples
                                CompressionStats* stats, double tolerance, int max_steps,
                                double dt_s) {
   Model m = model;
-  SolverOptions& so = m.options;
-  so.integrator = Integrator::kImplicitEuler;
-  so.dt = dt_s;
-  so.substeps = 1;
-  so.mass_damping = 0;
-  so.active_region = false;
-  // Inexact Newton: each solve is repeated until the force settles, so a step need not be exact.
-  so.newton_iterations = 2;
-  so.cg_iterations = std::max(so.cg_iterations, 100);
-  so.cg_tolerance = std::max(so.cg_tolerance, 1e-4);
-  for (SpringGroup& g : m.groups) {  // elastic equilibrium: no rate terms
-    g.card.damping = 0;
-    g.card.maxwell_k = 0;
-    g.card.maxwell_tau = 0;
-  }
   PlaneSpec& plate = m.planes.at(0);
   const Vec3 n = plate.normal;
   const auto [lo, hi] = extent(m, n);
-  const double travel = to_strain * (hi - lo);
   plate.stiffness = std::max(plate.stiffness, rigid_plate_stiffness(m, false));
-  State s = make_state(m);
-  s.planes[0].offset = lo;
-  Workspace ws(m);
-  Curve out(samples + 1);
-  long steps = 0;
-  double max_pen = 0, step_time = 0, f = 0;
-  // Equilibrium at plate offset `off` from the current state: steps until the plate force
-  // settles; false when it does not within max_steps.
-  auto solve_at = [&](double off) {
-    s.planes[0].offset = off;
-    double last = std::numeric_limits<double>::quiet_NaN();
-    for (int k = 0; k < max_steps; ++k) {
-      // At rest before each step: its predictor is the last state and its inertia term a pull
-      // toward it (pseudo-transient continuation), not an extrapolation.
-      for (Vec3& v : s.v) v.setZero();
-      const auto t0 = std::chrono::steady_clock::now();
-      step(m, s, ws);
-      step_time += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      ++steps;
-      compute_forces(m, s, ws);
-      f = -n.dot(s.planes[0].force);
-      if (std::abs(f - last) <= tolerance * std::abs(f)) return true;
-      last = f;
-    }
-    return false;
-  };
-  double previous = lo;
-  for (int i = 1; i <= samples; ++i) {
-    const double target = lo + travel * i / samples;
-    // A solve that does not settle is retried from the last equilibrium in 2, 4, 8, 16 parts.
-    const State saved = s;
-    bool settled = solve_at(target);
-    for (int parts = 2; !settled && parts <= 16; parts *= 2) {
-      s = saved;
-      settled = true;
-      for (int j = 1; j <= parts && settled; ++j)
-        settled = solve_at(previous + (target - previous) * j / parts);
-    }
-    previous = target;
-    out[i].displacement = travel * i / samples;
-    out[i].force = f;
-    for (const Vec3& x : s.x) max_pen = std::max(max_pen, s.planes[0].offset - n.dot(x));
+  plate.offset = lo;  // first contact
+  QuasiStaticOptions o;
+  o.samples = samples;
+  o.settle = Settle::kReactionSteady;
+  o.tolerance = tolerance;
+  o.max_iterations = max_steps;
+  o.dt = dt_s;
+  // Inexact Newton: each solve is repeated until the force settles, so a step need not be exact.
+  o.newton_iterations = 2;
+  o.cg_iterations = std::max(m.options.cg_iterations, 100);
+  o.cg_tolerance = std::max(m.options.cg_tolerance, 1e-4);
+  double max_pen = 0;
+  QuasiStaticStats qs;
+  const Curve out = quasi_static_curve(
+      m, plate_load(m), plate_reaction(), to_strain * (hi - lo), o, &qs,
+      [&max_pen](const Model& mm, const State& s) {
+        for (const Vec3& x : s.x)
+          max_pen = std::max(max_pen, s.planes[0].offset - mm.planes[0].normal.dot(x));
+      });
+  if (stats) {
+    Counters c;
+    c.rollbacks = qs.rollbacks;
+    c.hard_stops = qs.hard_stops;
+    fill_stats(m, qs.positions, c, plate.stiffness, dt_s, max_pen, qs.steps, qs.step_seconds,
+               stats);
   }
-  if (stats) fill_stats(m, s, plate.stiffness, dt_s, max_pen, steps, step_time, stats);
   return out;
 }
 

@@ -76,19 +76,18 @@ double layer_spread(const Model& model, const std::vector<Vec3>& x);
 Curve compression_curve(const Model& model, double rate, double to_strain, int samples,
                         CompressionStats* stats = nullptr);
 
-// The same test quasi-statically: the plate is set at each of `samples` equal steps of travel
-// up to to_strain * plate_height and the body brought to static equilibrium there, starting from
-// the last one (continuation in strain, each solve warm-started). Each solve is a sequence of
-// backward Euler steps of dt = `dt_s` (two Newton iterations each, the conjugate gradient to a
-// relative residual of 1e-4 at least) with no mass damping, card damping or Maxwell branch
-// (the core's Newton iteration with its conjugate gradient: with that step the inertia term is
-// a small regularisation of the stiffness, which keeps the body's free rigid rotation about the
-// load axis bounded), repeated at the same plate position until the plate force changes by less
-// than `tolerance` (relative) between two steps, at most `max_steps` times. The plate is made
-// rigid as in compression_curve. Returns samples + 1 points (the first at 0); stats->steps
-// counts every step taken. A static answer has no rate: the plates of the phantom tests move at
-// 10 mm/min, slow enough for the silicone's viscous terms to be left out (the calibration
-// fits its elastic card to them).
+// The same test quasi-statically, through the lab's quasi-static solver (lab/quasi_static.h):
+// the frictionless plate is set at each of `samples` equal steps of travel up to to_strain *
+// plate_height and the body brought to elastic equilibrium there, starting from the last one
+// (continuation in strain, each solve warm-started and extrapolated). Each solve is a sequence
+// of backward Euler steps of dt = `dt_s` (two Newton iterations each, the conjugate gradient to a
+// relative residual of 1e-4 at least) repeated until the plate force changes by less than
+// `tolerance` (relative) between two steps (Settle::kReactionSteady), at most `max_steps` times
+// per increment, an unsettled increment redone in smaller parts. The plate is made rigid as in
+// compression_curve. Returns samples + 1 points (the first at 0); stats->steps counts every step
+// taken. A static answer has no rate: the plates of the phantom tests move at 10 mm/min, slow
+// enough for the silicone's viscous terms to be left out (the calibration fits its elastic card
+// to them).
 // Precondition: the model has a plane; 0 < to_strain < 1; samples >= 1.
 Curve static_compression_curve(const Model& model, double to_strain, int samples,
                                CompressionStats* stats = nullptr, double tolerance = 1e-5,

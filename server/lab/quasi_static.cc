@@ -1,6 +1,7 @@
 #include "lab/quasi_static.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -18,7 +19,8 @@ double out_of_balance(const Model& m, const Workspace& ws) {
 }  // namespace
 
 Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionFn& reaction,
-                         double travel, const QuasiStaticOptions& o, QuasiStaticStats* stats) {
+                         double travel, const QuasiStaticOptions& o, QuasiStaticStats* stats,
+                         const IncrementFn& increment) {
   Model m = model;
   SolverOptions& so = m.options;
   so.integrator = Integrator::kImplicitEuler;
@@ -26,42 +28,69 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
   so.substeps = 1;
   so.newton_iterations = o.newton_iterations;
   so.cg_iterations = o.cg_iterations;
-  so.cg_tolerance = 1e-10;
+  so.cg_tolerance = o.cg_tolerance;
   so.mass_damping = 0;
   so.gravity.setZero();
   so.max_speed = std::numeric_limits<double>::infinity();
   so.active_region = false;
+  for (SpringGroup& g : m.groups) {  // elastic equilibrium: no rate terms
+    g.card.damping = 0;
+    g.card.maxwell_k = 0;
+    g.card.maxwell_tau = 0;
+  }
   State s = make_state(m);
   Workspace ws(m);
   QuasiStaticStats st;
-  Curve out(o.samples + 1);
-  std::vector<Vec3> prev = s.x, delta(m.num_nodes(), Vec3::Zero());
-  for (int j = 1; j <= o.samples; ++j) {
-    const double u = travel * j / o.samples;
-    // Predictor: the last increment's displacement again.
-    for (int i = 0; i < m.num_nodes(); ++i) s.x[i] += delta[i].cwiseProduct(m.free_axes[i]);
+  double f = 0;
+  // Equilibrium at travel u from the current state; false when it does not settle.
+  auto settle_at = [&](double u, double* rel) {
     load(m, s, u);
-    double rel = std::numeric_limits<double>::infinity(), f = 0;
-    int it = 0;
-    for (; it < o.max_iterations; ++it) {
+    double last = std::numeric_limits<double>::quiet_NaN();
+    for (int it = 0; it < o.max_iterations; ++it) {
       std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
       s.time = 0;
+      const auto t0 = std::chrono::steady_clock::now();
       step(m, s, ws);
+      st.step_seconds +=
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       ++st.steps;
       std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
       compute_forces(m, s, ws);
       f = reaction(m, s, ws);
-      rel = out_of_balance(m, ws) / std::max(std::abs(f), 1e-30);
-      if (rel < o.tolerance) break;
+      *rel = o.settle == Settle::kOutOfBalance
+                 ? out_of_balance(m, ws) / std::max(std::abs(f), 1e-30)
+                 : std::abs(f - last) / std::max(std::abs(f), 1e-30);
+      if (*rel <= o.tolerance) return true;
+      last = f;
     }
-    if (!(rel < o.tolerance)) ++st.unconverged;
+    return false;
+  };
+  Curve out(o.samples + 1);
+  std::vector<Vec3> prev = s.x, delta(m.num_nodes(), Vec3::Zero());
+  double u_prev = 0;
+  for (int j = 1; j <= o.samples; ++j) {
+    const double u = travel * j / o.samples;
+    const State saved = s;
+    // Predictor: the last increment's displacement again.
+    for (int i = 0; i < m.num_nodes(); ++i) s.x[i] += delta[i].cwiseProduct(m.free_axes[i]);
+    double rel = std::numeric_limits<double>::infinity();
+    bool settled = settle_at(u, &rel);
+    for (int parts = 2; !settled && parts <= o.max_parts; parts *= 2) {
+      s = saved;
+      settled = true;
+      for (int k = 1; k <= parts && settled; ++k)
+        settled = settle_at(k == parts ? u : u_prev + (u - u_prev) * k / parts, &rel);
+    }
+    if (!settled) ++st.unconverged;
     st.worst_residual = std::max(st.worst_residual, rel);
     out[j].displacement = u;
     out[j].force = f;
+    if (increment) increment(m, s);
     for (int i = 0; i < m.num_nodes(); ++i) {
       delta[i] = s.x[i] - prev[i];
       prev[i] = s.x[i];
     }
+    u_prev = u;
   }
   st.increments = o.samples;
   st.rollbacks = s.counters.rollbacks;

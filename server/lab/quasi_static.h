@@ -1,14 +1,22 @@
 // Quasi-static loading of a body: the boundary is moved in increments and the body is brought to
-// equilibrium after each one, so a force curve does not depend on a rate, inertia or damping.
-// Used by `conica-lab compress --bonded` / `--quasi-static` and `conica-lab indent`, the tests
-// that are compared with continuum references (docs/validation.md). Core only: no I/O, no
-// logging.
+// elastic equilibrium after each one, so a force curve does not depend on a rate, inertia or
+// damping. The one quasi-static solver of the lab: `conica-lab compress --bonded` /
+// `--quasi-static` / `--static`, `conica-lab indent`, the calibration's full-body runs
+// (static_compression_curve) and the tests compared with continuum references
+// (docs/validation.md). Core only: no I/O, no logging.
 //
 // Each equilibrium iteration is one implicit (backward Euler) step from rest velocities with a
 // long time step: its Newton iterations solve K dx = f with the small mass term M / h^2 as a
-// regulariser. An increment starts from the last one's displacement extrapolated linearly, and is
-// converged when the out-of-balance force on the free nodes is below `tolerance` times the
-// reaction (root of the sum of squares over free axes).
+// regulariser (pseudo-transient continuation; it also keeps a body's free rigid rotation about
+// the load axis bounded). Card damping and Maxwell branches are left out: they change the path
+// to an equilibrium, not the elastic equilibrium (the long-term response). An increment starts
+// from the last one's displacement extrapolated linearly; it has settled when
+//  - Settle::kOutOfBalance: the out-of-balance force on the free nodes (root of the sum of
+//    squares over free axes) is below `tolerance` times the reaction, or
+//  - Settle::kReactionSteady: the reaction changes by less than `tolerance` (relative) between
+//    two iterations (cheaper with inexact Newton steps; the calibration's choice).
+// An increment that does not settle within max_iterations is redone from the last equilibrium in
+// 2, 4, ... max_parts parts; if it still does not, it is counted as unconverged.
 #pragma once
 
 #include <functional>
@@ -25,22 +33,28 @@ struct Workspace;
 
 namespace conica::lab {
 
+enum class Settle { kOutOfBalance, kReactionSteady };
+
 struct QuasiStaticOptions {
-  int samples = 20;          // increments (equal travel), each a curve point
-  double tolerance = 1e-4;   // out-of-balance force / reaction for an increment to converge
-  int max_iterations = 300;  // equilibrium iterations per increment at most
+  int samples = 20;  // increments (equal travel), each a curve point
+  Settle settle = Settle::kOutOfBalance;
+  double tolerance = 1e-4;   // of the settle criterion (relative)
+  int max_iterations = 300;  // equilibrium iterations per increment (or part) at most
+  int max_parts = 16;        // an unsettled increment is redone in 2, 4, ... max_parts parts
   double dt = 1.0;           // s, the implicit step of an iteration (a regulariser only)
   int newton_iterations = 4;
   int cg_iterations = 400;
+  double cg_tolerance = 1e-10;  // relative residual of each Newton step's conjugate gradient
 };
 
 struct QuasiStaticStats {
   long steps = 0;  // implicit steps taken in all
   int increments = 0;
-  int unconverged = 0;          // increments that hit max_iterations
-  double worst_residual = 0;    // largest final out-of-balance / reaction over the increments
+  int unconverged = 0;          // increments that did not settle, even in max_parts parts
+  double worst_residual = 0;    // largest final value of the settle criterion over the increments
   std::uint64_t rollbacks = 0;  // guard trips
   std::uint64_t hard_stops = 0;
+  double step_seconds = 0;      // s, wall time spent in step() in all
   std::vector<Vec3> positions;  // m, at the end
 };
 
@@ -48,13 +62,16 @@ struct QuasiStaticStats {
 using LoadFn = std::function<void(const Model&, State&, double u)>;
 // The reaction (N, positive against the travel) after a force pass.
 using ReactionFn = std::function<double(const Model&, const State&, const Workspace&)>;
+// Called with the state at the end of every increment (e.g. to record a penetration).
+using IncrementFn = std::function<void(const Model&, const State&)>;
 
 // The curve of reaction against travel from 0 to `travel` (m) in options.samples increments
 // (samples + 1 points, the first at 0). The model's integrator settings are replaced by the
-// quasi-static ones above; its elements, springs, contacts and hard stop are kept.
+// quasi-static ones above and its cards lose damping and Maxwell branches; its elements, springs,
+// contacts and hard stop are kept.
 Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionFn& reaction,
                          double travel, const QuasiStaticOptions& options,
-                         QuasiStaticStats* stats = nullptr);
+                         QuasiStaticStats* stats = nullptr, const IncrementFn& increment = {});
 
 // Plane 0 (the moving plate, ensure_top_plate) bonded to the body's face under it and placed on
 // it, and the opposite face clamped: a bonded compression. Returns what is wrong, empty on

@@ -20,6 +20,7 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using testing::run_lab;
+using testing::slurp;
 
 const std::string kScene = CONICA_SOURCE_DIR "/configs/phantom-cylinder.pbtxt";
 const std::string kData = CONICA_SHARED_DIR "/data/phantoms";
@@ -31,13 +32,6 @@ fs::path Temp(const std::string& name) {
       fs::path(::testing::TempDir()) / ("conica_library_" + std::to_string(getpid()) + "_" + name);
   fs::remove_all(p);
   return p;
-}
-
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 std::string Lib(const fs::path& out, const std::string& more = "") {
@@ -62,9 +56,9 @@ TEST(LabLibrary, ShardsAndMergeEqualOneProcessAndResume) {
   ASSERT_EQ(run_lab(Lib(sharded, " --shard 0/2")).status, 0);
   ASSERT_EQ(run_lab(Lib(sharded, " --merge")).status, 0);
   for (const char* f : {"EF30_50T.card", "EF50_50T.card", "index.csv"})
-    EXPECT_EQ(Slurp(one / f), Slurp(sharded / f)) << f;
+    EXPECT_EQ(slurp(one / f), slurp(sharded / f)) << f;
   // Provenance, and the card is a material a scene names.
-  const std::string card = Slurp(one / "EF30_50T.card");
+  const std::string card = slurp(one / "EF30_50T.card");
   EXPECT_THAT(card, HasSubstr("# data: EF30_50T/EF30_50T_A1.csv ("));
   EXPECT_THAT(card, HasSubstr("# program: conica "));
   EXPECT_THAT(card, HasSubstr("# strain range: error over 0.03 to 0.5"));
@@ -83,7 +77,7 @@ TEST(LabLibrary, ShardsAndMergeEqualOneProcessAndResume) {
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("[1/2] EF30_50T: card up to date, skipped"));
   EXPECT_THAT(r.output, HasSubstr("[2/2] EF50_50T: card up to date, skipped"));
-  EXPECT_EQ(Slurp(one / "EF30_50T.card"), Slurp(sharded / "EF30_50T.card"));
+  EXPECT_EQ(slurp(one / "EF30_50T.card"), slurp(sharded / "EF30_50T.card"));
 }
 
 TEST(LabLibrary, ABadFileStopsItsRecipeNamingFileAndLine) {

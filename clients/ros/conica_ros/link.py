@@ -300,14 +300,20 @@ def open_link(endpoint, state_endpoint=None, control_endpoint=None, timeout=0.1,
             return PackageLink(endpoint, state_endpoint, control_endpoint, timeout)
         except ImportError as e:
             if kind == "package":
-                raise LinkError(f"the Python package conica is not installed ({e}); "
-                                "pip install clients/python") from None
+                raise LinkError(f"the Python package conica is not installed ({e}); install it "
+                                "into a venv that sees Debian's rospy and run the node with "
+                                "that venv's python: /usr/bin/python3 -m venv "
+                                "--system-site-packages .venv && .venv/bin/pip install "
+                                "--no-build-isolation clients/python, then .venv/bin/python "
+                                "clients/ros/conica-ros") from None
     try:
         return ZmqLink(endpoint, state_endpoint, control_endpoint, timeout)
     except ImportError as e:
-        raise LinkError(f"cannot talk to the server: {e} (install the conica package, or put "
-                        "build/proto/gen on PYTHONPATH with python3-zmq and python3-protobuf)"
-                        ) from None
+        raise LinkError(f"cannot talk to the server: {e} (run the node with the python of a "
+                        "venv holding the conica package: /usr/bin/python3 -m venv "
+                        "--system-site-packages .venv && .venv/bin/pip install "
+                        "--no-build-isolation clients/python; or put build/proto/gen on "
+                        "PYTHONPATH with python3-zmq and python3-protobuf)") from None
 
 
 __all__ = ["Reply", "LinkTimeout", "LinkError", "ProbeStream", "open_link", "sibling"]

@@ -34,9 +34,17 @@ struct TradeoffRow;
 // the working directory or the source tree. Returns false with the reason in *error.
 // probe_stiffness: indentation probe penalty in N/m per node, 0 for the liver scene's own;
 // strain: the compression's final engineering strain; coarse_liver: a second liver mesh or "".
+// The sweep's units are its experiment x law pairs (kTradeoffUnits, each with its own reference
+// run): `units`, when given, says which to run and hears each one's rows when it is done (its
+// error stops the sweep).
+constexpr int kTradeoffUnits = 4;  // {compression, indentation} x {conical, hooke}
+struct TradeoffUnits {
+  std::function<bool(int unit)> runs;
+  std::function<std::string(int unit, const std::vector<TradeoffRow>& rows)> done;
+};
 bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, std::string* error,
                     double probe_stiffness = 100, double strain = 0.3,
-                    const std::string& coarse_liver = "");
+                    const std::string& coarse_liver = "", const TradeoffUnits& units = {});
 
 // Runs `/usr/bin/python3 scripts/NAME.py ARGS...` from the source tree to draw a figure.
 // Returns the exit status; prints why on failure.

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "app/lab/lab.h"
+#include "app/lab/lab_sweep.h"
 #include "io/curve_reader.h"
 #include "io/scene.h"
 #include "io/scene_writer.h"
@@ -106,21 +107,6 @@ std::vector<Recipe> recipes_in(const fs::path& dir, std::string* error) {
   return out;
 }
 
-// "i/N" -> shard i of N (0 <= i < N).
-bool parse_shard(const std::string& s, int* i, int* n) {
-  const size_t slash = s.find('/');
-  if (slash == std::string::npos) return false;
-  try {
-    size_t a = 0, b = 0;
-    *i = std::stoi(s.substr(0, slash), &a);
-    *n = std::stoi(s.substr(slash + 1), &b);
-    if (a != slash || b != s.size() - slash - 1) return false;
-  } catch (...) {
-    return false;
-  }
-  return *n >= 1 && *i >= 0 && *i < *n;
-}
-
 // The "# key: " line of a card, empty when none.
 std::string key_of(const fs::path& card) {
   std::ifstream in(card);
@@ -137,16 +123,6 @@ std::string field_of(const fs::path& card, const std::string& field) {
   const std::string head = "# " + field + ": ";
   while (std::getline(in, line))
     if (line.rfind(head, 0) == 0) return line.substr(head.size());
-  return {};
-}
-
-// Writes `text` to `path` through a temporary file in the same folder and a rename.
-std::string write_atomic(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".part";
-  if (std::string e = io::write_text_file(tmp.string(), text); !e.empty()) return e;
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) return path.string() + ": cannot write (" + ec.message() + ")";
   return {};
 }
 

@@ -8,10 +8,16 @@
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "app/lab/lab.h"
+#include "app/lab/lab_sweep.h"
 #include "core/body.h"
 #include "core/step.h"
+
+#ifndef CONICA_VERSION
+#define CONICA_VERSION "unknown"
+#endif
 
 namespace conica::lab {
 namespace {
@@ -185,11 +191,99 @@ Outcome one_spring_bottoming(double cap, Integrator integ, double load_ratio, do
 
 }  // namespace
 
+namespace {
+
+const Integrator kIntegrators[] = {Integrator::kSymplecticEuler, Integrator::kExplicitEuler,
+                                   Integrator::kImplicitEuler};
+const double kDts[] = {0.125e-3, 0.25e-3, 0.5e-3, 1e-3, 2e-3, 4e-3};
+const double kStiffnesses[] = {50, 200, 800, 3200, 12800, 51200};
+constexpr int kReleaseUnits = 36;  // stiffness x time step
+constexpr int kUnits = kReleaseUnits + 2 + 3;
+
+std::string format(const char* fmt, auto... args) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, fmt, args...);
+  return buf;
+}
+
+// The CSV rows of unit u: 0..35 a release (stiffness u / 6, time step u % 6) with every
+// integrator, 36..37 the two bottoming loads, 38..40 the step load, ramp and teleport per
+// integrator. Units are independent: a sharded sweep writes the rows one process writes.
+std::string stability_unit(int u, double seconds) {
+  std::string rows;
+  if (u < kReleaseUnits) {
+    // 1. Release: time step x stiffness.
+    const double k = kStiffnesses[u / 6], dt = kDts[u % 6];
+    const double w = omega_max(standard_body(hooke(k), Integrator::kSymplecticEuler, 1e-3));
+    // Converged reference: symplectic Euler at dt / 64 (h omega <= 0.2 everywhere here).
+    std::vector<Vec3> ref, x;
+    const Model mr = standard_body(hooke(k), Integrator::kSymplecticEuler, dt / 64);
+    release(mr, seconds, &ref);
+    for (Integrator integ : kIntegrators) {
+      const Model m = standard_body(hooke(k), integ, dt);
+      Outcome r = release(m, seconds, &x);
+      r.error = r.bounded ? error_against(m, x, ref) : NAN;
+      rows += format("release,%s,%g,%g,%.4f,%d,%lu,%.4g,%.4g,\n", integrator_name(integ), dt * 1e3,
+                     k, dt * w, r.bounded, (unsigned long)r.rollbacks, r.drift, r.error);
+    }
+    if (u % 6 == 5)
+      std::printf(
+          "stiffness %6g N/m: omega_max %.1f rad/s, symplectic limit dt = 2/omega = %.3f ms\n", k,
+          w, 2e3 / w);
+    return rows;
+  }
+  if (u < kReleaseUnits + 2) {
+    // 2. Bottoming, one mass on one conical spring (K0 = 49 N/m, telescopic, L0 = 10 mm).
+    //    (a) 0.1 g ramped to 0.2 Ps: the equilibrium lies in the nonlinear phase where the exact
+    //        law's k_t = 34 K0 = 1650 N/m, past the explicit limit 2 m / dt^2 = 200 N/m; a cap of
+    //        3 K0 = 147 N/m respects it.
+    //    (b) 1 g under a step load of 1.5 Ps, more than the spring can carry: only the hard stop
+    //        keeps the mass from passing through its anchor.
+    //    With and without the hard stop. energy_drift holds the smallest length reached over
+    //    the hard-stop length (< 0: the spring inverted).
+    struct Load {
+      const char* name;
+      double ratio, ramp, mass, cap;
+    };
+    const Load loads[] = {Load{"ramp0.2Ps", 0.2, 0.5, 1e-4, 3.0},
+                          Load{"step1.5Ps", 1.5, 0.0, 1e-3, 20.0}};
+    const Load& load = loads[u - kReleaseUnits];
+    for (bool stop : {true, false})
+      for (double cap : {1e12, load.cap})
+        for (Integrator integ : kIntegrators) {
+          double min_frac = 0;
+          const Outcome r =
+              one_spring_bottoming(cap, integ, load.ratio, load.ramp, load.mass, stop, &min_frac);
+          rows += format("bottoming_%s_cap_%s%s,%s,1,,,%d,%lu,%.4g,,%.4g\n", load.name,
+                         cap > 1e11 ? "none" : (cap < 10 ? "3" : "20"), stop ? "" : "_nostop",
+                         integrator_name(integ), r.bounded, (unsigned long)r.rollbacks, min_frac,
+                         r.max_force);
+        }
+    return rows;
+  }
+  // 3. Step load vs ramp, 4. probe teleport, on a linear block at the 1 kHz rate.
+  const Integrator integ = kIntegrators[u - kReleaseUnits - 2];
+  const Model m = standard_body(hooke(200), integ, 1e-3);
+  const Outcome ramp = press(m, 0.006, 0.2, false, 0.4);
+  const Outcome stepl = press(m, 0.006, 0.0, false, 0.4);
+  const Outcome tele = press(m, 0.018, 0.1, true, 0.4);
+  rows += format("ramp_load,%s,1,200,,%d,%lu,,,%.4g\n", integrator_name(integ), ramp.bounded,
+                 (unsigned long)ramp.rollbacks, ramp.max_force);
+  rows += format("step_load,%s,1,200,,%d,%lu,,,%.4g\n", integrator_name(integ), stepl.bounded,
+                 (unsigned long)stepl.rollbacks, stepl.max_force);
+  rows += format("teleport,%s,1,200,,%d,%lu,,,%.4g\n", integrator_name(integ), tele.bounded,
+                 (unsigned long)tele.rollbacks, tele.max_force);
+  return rows;
+}
+
+}  // namespace
+
 void register_stability(CLI::App& app, Runner* run) {
   struct Opts {
     std::string out = "stability";
     double seconds = 0.2;
     bool plot = true;
+    Sweep sweep;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -198,86 +292,36 @@ void register_stability(CLI::App& app, Runner* run) {
       ->capture_default_str();
   cmd->add_option("--seconds", o->seconds, "simulated time per cell, s")->capture_default_str();
   cmd->add_flag("!--no-plot", o->plot, "skip the PNG");
+  o->sweep.add_options(cmd);
   cmd->callback([o, run] {
     *run = [o]() -> int {
-      const std::string csv_path = o->out + ".csv";
-      FILE* csv = std::fopen(csv_path.c_str(), "w");
-      if (!csv) {
-        std::fprintf(stderr, "conica-lab stability: cannot write %s\n", csv_path.c_str());
-        return 1;
-      }
-      std::fputs(
-          "case,integrator,dt_ms,stiffness_n_per_m,h_omega,bounded,rollbacks,energy_drift,"
-          "error,max_force_n\n",
-          csv);
-      const Integrator kIntegrators[] = {Integrator::kSymplecticEuler, Integrator::kExplicitEuler,
-                                         Integrator::kImplicitEuler};
-      // 1. Release: time step x stiffness.
-      const double dts[] = {0.125e-3, 0.25e-3, 0.5e-3, 1e-3, 2e-3, 4e-3};
-      const double ks[] = {50, 200, 800, 3200, 12800, 51200};
-      for (double k : ks) {
-        const double w = omega_max(standard_body(hooke(k), Integrator::kSymplecticEuler, 1e-3));
-        for (double dt : dts) {
-          // Converged reference: symplectic Euler at dt / 64 (h omega <= 0.2 everywhere here).
-          std::vector<Vec3> ref, x;
-          const Model mr = standard_body(hooke(k), Integrator::kSymplecticEuler, dt / 64);
-          release(mr, o->seconds, &ref);
-          for (Integrator integ : kIntegrators) {
-            const Model m = standard_body(hooke(k), integ, dt);
-            Outcome r = release(m, o->seconds, &x);
-            r.error = r.bounded ? error_against(m, x, ref) : NAN;
-            std::fprintf(csv, "release,%s,%g,%g,%.4f,%d,%lu,%.4g,%.4g,\n", integrator_name(integ),
-                         dt * 1e3, k, dt * w, r.bounded, (unsigned long)r.rollbacks, r.drift,
-                         r.error);
-          }
-        }
-        std::printf(
-            "stiffness %6g N/m: omega_max %.1f rad/s, symplectic limit dt = 2/omega = "
-            "%.3f ms\n",
-            k, w, 2e3 / w);
-      }
-      // 2. Bottoming, one mass on one conical spring (K0 = 49 N/m, telescopic, L0 = 10 mm).
-      //    (a) 0.1 g ramped to 0.2 Ps: the equilibrium lies in the nonlinear phase where the exact
-      //        law's k_t = 34 K0 = 1650 N/m, past the explicit limit 2 m / dt^2 = 200 N/m; a cap of
-      //        3 K0 = 147 N/m respects it.
-      //    (b) 1 g under a step load of 1.5 Ps, more than the spring can carry: only the hard stop
-      //        keeps the mass from passing through its anchor.
-      //    With and without the hard stop. energy_drift holds the smallest length reached over
-      //    the hard-stop length (< 0: the spring inverted).
-      struct Load {
-        const char* name;
-        double ratio, ramp, mass, cap;
+      auto fail = [](const std::string& e, int rc) {
+        std::fprintf(stderr, "conica-lab stability: %s\n", e.c_str());
+        return rc;
       };
-      for (const Load& load :
-           {Load{"ramp0.2Ps", 0.2, 0.5, 1e-4, 3.0}, Load{"step1.5Ps", 1.5, 0.0, 1e-3, 20.0}}) {
-        for (bool stop : {true, false}) {
-          for (double cap : {1e12, load.cap}) {
-            for (Integrator integ : kIntegrators) {
-              double min_frac = 0;
-              const Outcome r = one_spring_bottoming(cap, integ, load.ratio, load.ramp, load.mass,
-                                                     stop, &min_frac);
-              std::fprintf(csv, "bottoming_%s_cap_%s%s,%s,1,,,%d,%lu,%.4g,,%.4g\n", load.name,
-                           cap > 1e11 ? "none" : (cap < 10 ? "3" : "20"), stop ? "" : "_nostop",
-                           integrator_name(integ), r.bounded, (unsigned long)r.rollbacks, min_frac,
-                           r.max_force);
-            }
-          }
-        }
+      if (!(o->seconds > 0) || !std::isfinite(o->seconds))
+        return fail("--seconds must be > 0 s", 2);
+      const std::string key =
+          format("conica-lab stability --seconds %.17g (conica %s)", o->seconds, CONICA_VERSION);
+      Sweep& sw = o->sweep;
+      if (std::string e = sw.begin(o->out, key, kUnits); !e.empty()) return fail(e, 2);
+      std::string rows;
+      if (sw.sharded() && !sw.merging()) std::printf("%s\n", sw.summary().c_str());
+      for (int u = 0; u < kUnits; ++u) {
+        if (!sw.runs(u)) continue;
+        const std::string r = stability_unit(u, o->seconds);
+        if (std::string e = sw.put(u, r); !e.empty()) return fail(e, 1);
+        rows += r;
+        std::fflush(stdout);
       }
-      // 3. Step load vs ramp, 4. probe teleport, on a linear block at the 1 kHz rate.
-      for (Integrator integ : kIntegrators) {
-        const Model m = standard_body(hooke(200), integ, 1e-3);
-        const Outcome ramp = press(m, 0.006, 0.2, false, 0.4);
-        const Outcome stepl = press(m, 0.006, 0.0, false, 0.4);
-        const Outcome tele = press(m, 0.018, 0.1, true, 0.4);
-        std::fprintf(csv, "ramp_load,%s,1,200,,%d,%lu,,,%.4g\n", integrator_name(integ),
-                     ramp.bounded, (unsigned long)ramp.rollbacks, ramp.max_force);
-        std::fprintf(csv, "step_load,%s,1,200,,%d,%lu,,,%.4g\n", integrator_name(integ),
-                     stepl.bounded, (unsigned long)stepl.rollbacks, stepl.max_force);
-        std::fprintf(csv, "teleport,%s,1,200,,%d,%lu,,,%.4g\n", integrator_name(integ),
-                     tele.bounded, (unsigned long)tele.rollbacks, tele.max_force);
-      }
-      std::fclose(csv);
+      if (sw.sharded() && !sw.merging()) return 0;  // --merge writes the CSV
+      if (sw.merging())
+        if (std::string e = sw.merged(&rows); !e.empty()) return fail(e, 2);
+      const std::string csv_path = o->out + ".csv";
+      const std::string header =
+          "case,integrator,dt_ms,stiffness_n_per_m,h_omega,bounded,rollbacks,energy_drift,"
+          "error,max_force_n\n";
+      if (std::string e = write_atomic(csv_path, header + rows); !e.empty()) return fail(e, 1);
       std::printf("wrote %s\n", csv_path.c_str());
       if (o->plot)
         return run_plot_script("plot_stability", "'" + csv_path + "' --out '" + o->out + ".png'");

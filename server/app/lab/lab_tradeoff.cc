@@ -23,12 +23,16 @@
 #include <vector>
 
 #include "app/lab/lab.h"
+#include "app/lab/lab_sweep.h"
 #include "core/step.h"
 #include "io/mesh_reader.h"
 #include "io/mesh_repair.h"
 #include "io/scene.h"
 #include "lab/tradeoff.h"
 
+#ifndef CONICA_VERSION
+#define CONICA_VERSION "unknown"
+#endif
 #ifndef CONICA_SOURCE_DIR
 #define CONICA_SOURCE_DIR "."
 #endif
@@ -210,7 +214,8 @@ bool make_experiments(const SweepConfig& c, std::vector<Experiment>* out, std::s
 }  // namespace
 
 bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, std::string* error,
-                    double probe_stiffness, double strain, const std::string& coarse_liver) {
+                    double probe_stiffness, double strain, const std::string& coarse_liver,
+                    const TradeoffUnits& units) {
   SweepConfig c;
   c.coarse_liver = coarse_liver;
   c.probe_stiffness = probe_stiffness;
@@ -231,8 +236,12 @@ bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, st
   if (!quick)
     for (int n : implicit_substeps) settings.push_back({Integrator::kImplicitEuler, 2, 40, n});
 
+  int unit = -1;
   for (const Experiment& e : experiments) {
     for (const char* law : {"conical", "hooke"}) {
+      ++unit;
+      if (units.runs && !units.runs(unit)) continue;
+      const size_t first_row = rows->size();
       const bool hooke = std::string(law) == "hooke";
       // The reference: finest resolution, symplectic Euler at the smallest step.
       BodySpec ref_spec = e.resolutions.back().spec;
@@ -298,6 +307,10 @@ bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, st
           rows->push_back(r);
         }
       }
+      if (units.done) {
+        *error = units.done(unit, std::vector<TradeoffRow>(rows->begin() + first_row, rows->end()));
+        if (!error->empty()) return false;
+      }
     }
   }
   return true;
@@ -313,6 +326,7 @@ void register_tradeoff(CLI::App& app, Runner* run) {
     double probe_stiffness = 100;
     double strain = 0.3;
     std::string coarse_liver;
+    Sweep sweep;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -328,6 +342,7 @@ void register_tradeoff(CLI::App& app, Runner* run) {
       ->capture_default_str();
   cmd->add_option("--coarse-liver", o->coarse_liver,
                   "indentation: a coarser liver mesh, mapped onto the scene's by principal axes");
+  o->sweep.add_options(cmd);
   cmd->callback([o, run] {
     *run = [o]() -> int {
       std::vector<TradeoffRow> rows;
@@ -340,20 +355,47 @@ void register_tradeoff(CLI::App& app, Runner* run) {
         std::fprintf(stderr, "conica-lab tradeoff: --probe-stiffness must be >= 0 N/m\n");
         return 2;
       }
-      if (!tradeoff_sweep(o->quick, true, &rows, &error, o->probe_stiffness, o->strain,
-                          o->coarse_liver)) {
-        std::fprintf(stderr, "conica-lab tradeoff: %s\n", error.c_str());
+      // Units: the experiment x law pairs; the key: every option that changes a row.
+      Sweep& sw = o->sweep;
+      char key[512];
+      std::snprintf(key, sizeof key,
+                    "conica-lab tradeoff%s --probe-stiffness %.17g --strain %.17g "
+                    "--coarse-liver '%s' (conica %s)",
+                    o->quick ? " --quick" : "", o->probe_stiffness, o->strain,
+                    o->coarse_liver.c_str(), CONICA_VERSION);
+      if (std::string e = sw.begin(o->out, key, kTradeoffUnits); !e.empty()) {
+        std::fprintf(stderr, "conica-lab tradeoff: %s\n", e.c_str());
         return 2;
       }
+      std::string text;
+      if (sw.merging()) {
+        if (std::string e = sw.merged(&text);
+            !e.empty() || !parse_tradeoff_csv(tradeoff_csv_header() + text, &rows, &error)) {
+          std::fprintf(stderr, "conica-lab tradeoff: %s\n", e.empty() ? error.c_str() : e.c_str());
+          return 2;
+        }
+      } else {
+        if (sw.sharded()) std::printf("%s\n", sw.summary().c_str());
+        TradeoffUnits units;
+        units.runs = [&sw](int u) { return sw.runs(u); };
+        units.done = [&sw](int u, const std::vector<TradeoffRow>& unit_rows) {
+          std::string t;
+          for (const TradeoffRow& r : unit_rows) t += to_csv(r);
+          return sw.put(u, t);
+        };
+        if (!tradeoff_sweep(o->quick, true, &rows, &error, o->probe_stiffness, o->strain,
+                            o->coarse_liver, units)) {
+          std::fprintf(stderr, "conica-lab tradeoff: %s\n", error.c_str());
+          return 2;
+        }
+        if (sw.sharded()) return 0;  // --merge writes the CSV and the chart
+        for (const TradeoffRow& r : rows) text += to_csv(r);
+      }
       const std::string csv_path = o->out + ".csv";
-      FILE* f = std::fopen(csv_path.c_str(), "w");
-      if (!f) {
-        std::fprintf(stderr, "conica-lab tradeoff: cannot write %s\n", csv_path.c_str());
+      if (std::string e = write_atomic(csv_path, tradeoff_csv_header() + text); !e.empty()) {
+        std::fprintf(stderr, "conica-lab tradeoff: %s\n", e.c_str());
         return 1;
       }
-      std::fputs(tradeoff_csv_header().c_str(), f);
-      for (const TradeoffRow& r : rows) std::fputs(to_csv(r).c_str(), f);
-      std::fclose(f);
       // The Pareto front of each experiment and law.
       for (const char* scene : {"compression", "indentation"})
         for (const char* law : {"conical", "hooke"}) {
