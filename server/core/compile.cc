@@ -242,8 +242,7 @@ ContactScratch contact_scratch(const Model& m) {
   C.block.assign(nn, Mat3::Zero());
   C.nodes.assign(nn, 0);
   C.in_contact.assign(nn, 0);
-  C.candidates.resize(m.probes.size());
-  for (auto& c : C.candidates) c.reserve(m.surface.size());
+  C.candidates.assign(m.probes.size(), ContactCandidates(m));
   return C;
 }
 

@@ -66,7 +66,8 @@ struct PunchTool {
 };
 
 // Accumulates the layer's integrand at Gauss points of one triangle, in sums local to it that
-// flush() adds to the tool's totals and the nodes once per triangle.
+// flush() adds to the tool's totals and the nodes once per triangle (the tool's energy and
+// stiffness only when `terms` asks for them).
 template <typename Tool>
 struct Accumulator {
   const ContactLayer& layer;
@@ -74,6 +75,7 @@ struct Accumulator {
   ToolContact* out;
   Vec3* f[3];  // node forces (null: not wanted)
   Mat3* b[3];  // node blocks (null: not wanted)
+  unsigned terms = kToolAll;
   bool touched = false;
   double energy = 0, s0 = 0, depth = 0;
   Vec3 force = Vec3::Zero();
@@ -85,21 +87,34 @@ struct Accumulator {
   void add(const Vec3& y, const double l[3], double w) {
     Penetration pen;
     if (!tool.at(y, &pen)) return;
-    double p, dp, psi;
-    layer.eval(pen.g, &p, &dp, &psi);
-    const Vec3& u = pen.u;
-    const double uu[6] = {u.x() * u.x(), u.y() * u.y(), u.z() * u.z(),
-                          u.x() * u.y(), u.x() * u.z(), u.y() * u.z()};
-    energy += w * psi;
-    force -= (w * p) * u;
-    s0 += w * p * pen.curvature;
-    const double c1 = w * (-dp - p * pen.curvature), c2 = w * dp;
-    for (int k = 0; k < 6; ++k) {
-      S1[k] += c1 * uu[k];
-      S2[k] += c2 * uu[k];
+    double p, dp;
+    if (terms & kToolEnergy) {
+      double psi;
+      layer.eval(pen.g, &p, &dp, &psi);
+      energy += w * psi;
+    } else {
+      layer_pressure(layer, pen.g, &p, &dp);
     }
+    const Vec3& u = pen.u;
+    force -= (w * p) * u;
     depth = std::max(depth, pen.g);
     touched = true;
+    const bool stiffness = terms & kToolStiffness;
+    if (!stiffness && !b[0]) {
+      if (f[0])
+        for (int a = 0; a < 3; ++a) fl[a] += (w * l[a] * p) * u;
+      return;
+    }
+    const double uu[6] = {u.x() * u.x(), u.y() * u.y(), u.z() * u.z(),
+                          u.x() * u.y(), u.x() * u.z(), u.y() * u.z()};
+    if (stiffness) {
+      s0 += w * p * pen.curvature;
+      const double c1 = w * (-dp - p * pen.curvature), c2 = w * dp;
+      for (int k = 0; k < 6; ++k) {
+        S1[k] += c1 * uu[k];
+        S2[k] += c2 * uu[k];
+      }
+    }
     for (int a = 0; a < 3; ++a) {
       if (f[a]) fl[a] += (w * l[a] * p) * u;
       if (b[a]) {
@@ -113,8 +128,10 @@ struct Accumulator {
     if (!touched) return;
     out->energy += energy;
     out->force += force;
-    out->stiffness += symmetric(S1) + s0 * Mat3::Identity();
-    out->stiffness_psd -= symmetric(S2);
+    if (terms & kToolStiffness) {
+      out->stiffness += symmetric(S1) + s0 * Mat3::Identity();
+      out->stiffness_psd -= symmetric(S2);
+    }
     out->depth = std::max(out->depth, depth);
     for (int a = 0; a < 3; ++a) {
       if (f[a]) *f[a] += fl[a];
@@ -167,8 +184,9 @@ void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&&
         if (t > 0 && t < 1) breaks[nb++] = t;
     }
     breaks[nb++] = 1;
-    // Polar coordinates about O on each piece: rays at angle theta (two panels of at most 90
-    // degrees), out to the edge or the rim, whichever the piece has as its boundary.
+    // Polar coordinates about O on each piece: rays at angle theta (one panel: a piece spans
+    // less than 180 degrees, and a second panel changes the force on a flat face by less than
+    // 1e-5), out to the edge or the rim, whichever the piece has as its boundary.
     const double along_edge = A.cross(D).dot(n);
     for (int piece = 0; piece + 1 < nb; ++piece) {
       const double t0 = breaks[piece], t1 = breaks[piece + 1];
@@ -180,7 +198,7 @@ void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&&
       // The piece's boundary: the rim when its midpoint lies outside the disc, else the edge.
       const bool rim = (Qa + 0.5 * (t0 + t1) * D).squaredNorm() > a2;
       // A fixed rule per piece, so the integral is continuous as the tool moves.
-      constexpr int panels = 2;
+      constexpr int panels = 1;
       for (int pn = 0; pn < panels; ++pn)
         for (int i = 0; i < kGauss; ++i) {
           Vec3 w;     // the ray's direction (rim) or its end on the edge (edge)
@@ -407,7 +425,8 @@ double contact_modulus(const Model& m) {
 }
 
 void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::vector<Vec3>& x,
-                  const int* tris, int n, ToolContact* out, Vec3* node_force, Mat3* node_block) {
+                  const int* tris, int n, ToolContact* out, Vec3* node_force, Mat3* node_block,
+                  unsigned terms) {
   *out = ToolContact{};
   const ContactLayer layer = contact_layer(m, k, R);
   const int count = tris ? n : static_cast<int>(m.surface.size());
@@ -430,7 +449,7 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
       const double rad = triangle_bound(p0, p1, p2, &cen);
       if ((cen - pose).squaredNorm() >= (R + rad) * (R + rad)) continue;
       const SphereTool tool{pose, R};
-      Accumulator<SphereTool> acc{layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
+      Accumulator<SphereTool> acc{layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}, terms};
       sphere_triangle(p0, p1, p2, acc);
       touched = acc.touched;
     } else {
@@ -438,7 +457,7 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
       if ((p0 - pose).dot(axis) >= 0 && (p1 - pose).dot(axis) >= 0 && (p2 - pose).dot(axis) >= 0)
         continue;
       const PunchTool tool{pose, axis};
-      Accumulator<PunchTool> acc{layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}};
+      Accumulator<PunchTool> acc{layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}, terms};
       punch_triangle(p0, p1, p2, R, acc);
       touched = acc.touched;
     }
@@ -476,13 +495,75 @@ bool inside_surface(const Model& m, const std::vector<Vec3>& x, const Vec3& p) {
   return omega > 2 * M_PI;
 }
 
-void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector<int>* candidates,
+void ContactCandidates::reserve(const Model& m) {
+  if (triangles.capacity() < m.surface.size()) triangles.reserve(m.surface.size());
+  if (near.capacity() < m.surface.size()) near.reserve(m.surface.size());
+  if (x_pass.capacity() < m.surface_nodes.size()) x_pass.reserve(m.surface_nodes.size());
+}
+
+namespace {
+
+// Squared distance (m^2) from point y to the segment a + s (b - a), s in [0, 1].
+double segment_distance2(const Vec3& y, const Vec3& a, const Vec3& b) {
+  const Vec3 seg = b - a;
+  const double seg2 = seg.squaredNorm();
+  const double s = seg2 > 0 ? std::clamp((y - a).dot(seg) / seg2, 0.0, 1.0) : 0.0;
+  return (y - (a + s * seg)).squaredNorm();
+}
+
+// True when triangle t's bounding sphere comes within `reach` of the sweep a -> b.
+bool within_reach(const Model& m, const std::vector<Vec3>& x, int t, const Vec3& a, const Vec3& b,
+                  double reach) {
+  const auto& f = m.surface[t];
+  Vec3 cen;
+  const double lim = reach + triangle_bound(x[f[0]], x[f[1]], x[f[2]], &cen);
+  return segment_distance2(cen, a, b) < lim * lim;
+}
+
+// The broad phase (ContactCandidates): c->triangles = the triangles within `reach` of the sweep
+// start -> target, from the list of the last pass while it provably holds them all, else after
+// a new pass over the surface.
+void gather_candidates(const Model& m, const std::vector<Vec3>& x, const Vec3& start,
+                       const Vec3& target, double reach, double skin, ContactCandidates* c) {
+  const int ns = static_cast<int>(m.surface_nodes.size());
+  bool keep = c->model == &m && c->reach_pass == reach && c->skin_pass == skin &&
+              static_cast<int>(c->x_pass.size()) == ns;
+  if (keep) {
+    const double swept = std::max((start - c->start_pass).norm(), (target - c->target_pass).norm());
+    const double room = (skin - swept) / 3;  // the surface nodes may have moved this far
+    keep = room > 0;
+    const double room2 = room * room;
+    for (int j = 0; keep && j < ns; ++j)
+      keep = (x[m.surface_nodes[j]] - c->x_pass[j]).squaredNorm() < room2;
+  }
+  if (!keep) {
+    c->near.clear();
+    const int nt = static_cast<int>(m.surface.size());
+    for (int t = 0; t < nt; ++t)
+      if (within_reach(m, x, t, start, target, reach + skin)) c->near.push_back(t);
+    c->x_pass.resize(ns);
+    for (int j = 0; j < ns; ++j) c->x_pass[j] = x[m.surface_nodes[j]];
+    c->start_pass = start;
+    c->target_pass = target;
+    c->reach_pass = reach;
+    c->skin_pass = skin;
+    c->model = &m;
+    ++c->passes;
+  }
+  c->triangles.clear();
+  for (int t : c->near)
+    if (within_reach(m, x, t, start, target, reach)) c->triangles.push_back(t);
+}
+
+}  // namespace
+
+void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCandidates* candidates,
                   ProbeState* p) {
   p->force.setZero();
   p->stiffness.setZero();
   p->contacts = 0;
   p->depth = 0;
-  if (candidates) candidates->clear();
+  if (candidates) candidates->triangles.clear();
   if (!p->active) {
     p->proxy_placed = false;
     p->anchor = -1;
@@ -544,22 +625,13 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
   }
   // Candidates: triangles whose bounding sphere meets the capsule from start to target, widened
   // by the tool's reach.
-  const Vec3 seg = target - start;
-  const double seg2 = seg.squaredNorm();
-  const double reach = 1.5 * R;
+  const double reach = kCandidateReach * R;
   if (candidates) {
-    for (int t = 0; t < nt; ++t) {
-      const auto& f = m.surface[t];
-      const Vec3 &p0 = x[f[0]], &p1 = x[f[1]], &p2 = x[f[2]];
-      Vec3 cen;
-      const double rad = triangle_bound(p0, p1, p2, &cen);
-      const double s = seg2 > 0 ? std::clamp((cen - start).dot(seg) / seg2, 0.0, 1.0) : 0.0;
-      const double lim = reach + rad;
-      if ((cen - (start + s * seg)).squaredNorm() < lim * lim) candidates->push_back(t);
-    }
+    candidates->reserve(m);
+    gather_candidates(m, x, start, target, reach, kCandidateSkin * R, candidates);
   }
-  const int* cand = candidates ? candidates->data() : nullptr;
-  const int nc = candidates ? static_cast<int>(candidates->size()) : nt;
+  const int* cand = candidates ? candidates->triangles.data() : nullptr;
+  const int nc = candidates ? static_cast<int>(candidates->triangles.size()) : nt;
   // The point riding on the surface nearest y among the listed triangles (triangle, barycentric
   // coordinates, offset in its frame), for the anchor and the stick point.
   auto attach = [&](const Vec3& y, int* tri, Vec3* bary, Vec3* offset) {
@@ -610,6 +682,14 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, std::vector
       if (dx.norm() <= 1e-10 * R || -grad.dot(dx) <= 1e-13 * std::abs(phi)) break;
       const double cross = first_crossing(at, at + dx);
       if (cross <= 1) dx *= 0.9 * cross;
+      // A small step (a device that moved a little since the last tick) is taken as it is: the
+      // quadratic model is exact to O(|dx|^2) there, and the layer is evaluated once per update.
+      // Not with friction, whose slip needs the normal force at the step's end.
+      if (!(P.squaredNorm() > 0) && dx.norm() <= kProxyTrustStep * R &&
+          c.depth + dx.norm() < g_limit) {
+        at += dx;
+        break;
+      }
       double alpha = 1;
       ToolContact trial;
       Vec3 next = at;

@@ -49,6 +49,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include "core/model.h"
@@ -63,6 +64,40 @@ inline constexpr double kContactStiffnessFactor = 100.0;
 inline constexpr double kCouplingFactor = 100.0;
 // A proxy update sinks the tool at most this fraction of its radius deeper into the surface.
 inline constexpr double kProxyDepthRate = 0.02;
+// The candidate triangles' reach: within this multiple of the tool radius of its sweep.
+inline constexpr double kCandidateReach = 1.5;
+// The candidate list's skin, a fraction of the tool radius (ContactCandidates).
+inline constexpr double kCandidateSkin = 0.5;
+// A proxy's Newton step of at most this fraction of the tool radius, that keeps the tool
+// shallower than the depth limit, is taken without a line search (without evaluating the layer
+// again): the proxy follows a device that moves a little per tick at one layer evaluation.
+inline constexpr double kProxyTrustStep = 0.005;
+
+// The surface triangles near one tool, the proxy's broad phase (a Verlet list). A pass over the
+// whole surface lists the triangles whose bounding sphere (centroid, largest centroid-vertex
+// distance) comes within reach + skin of the tool's sweep (the segment from the proxy's start to
+// the device target) and keeps the surface nodes' positions. Later updates filter that list to
+// the triangles within reach of their own sweep, with no pass over the surface, while it still
+// provably holds all of them: with no surface node moved by more than delta since the pass, a
+// bounding sphere's centre moved by at most delta and its radius by at most 2 delta; a sweep
+// whose ends moved by at most Delta lies within Delta of the old one; so every triangle left out
+// is still farther than reach while 3 delta + Delta < skin. Sized for every triangle and surface
+// node of the model: nothing is allocated in the step.
+struct ContactCandidates {
+  std::vector<int> triangles;  // within reach of the last update's sweep: what tool_contact reads
+  std::vector<int> near;       // within reach + skin of the sweep at the last pass
+  std::vector<Vec3> x_pass;    // (model.surface_nodes) m, their positions at that pass
+  Vec3 start_pass = Vec3::Zero(), target_pass = Vec3::Zero();  // m, that pass's sweep
+  double reach_pass = -1;                                      // m (< 0: no pass yet)
+  double skin_pass = 0;                                        // m
+  const Model* model = nullptr;                                // the model of that pass
+  std::uint64_t passes = 0;  // passes over the whole surface so far (diagnostic)
+
+  ContactCandidates() = default;
+  explicit ContactCandidates(const Model& model) { reserve(model); }
+  // Capacity for every surface triangle and surface node of `model` (allocates when short).
+  void reserve(const Model& model);
+};
 
 // The contact layer's pressure law.
 struct ContactLayer {
@@ -94,6 +129,29 @@ inline void ContactLayer::eval(double g, double* p, double* dp, double* psi) con
   *psi = psic + pc * dg + 0.5 * dpc * dg * dg;
 }
 
+// The layer's pressure p (Pa) and its slope dp/dg (Pa/m) at penetration g, without the energy.
+inline void layer_pressure(const ContactLayer& layer, double g, double* p, double* dp) {
+  if (!(g > 0)) {
+    *p = *dp = 0;
+    return;
+  }
+  const double gc = 0.9 * layer.g_max;
+  const double gg = std::min(g, gc);
+  const double ir = 1 / (1 - gg / layer.g_max);
+  *p = layer.k * gg * ir;
+  *dp = layer.k * ir * ir;
+  if (g > gc) *p += *dp * (g - gc);
+}
+
+// What tool_contact sums for the tool besides its force and depth (the node forces and blocks
+// are asked for by their arrays).
+enum ToolTerms : unsigned {
+  kToolForceOnly = 0,
+  kToolEnergy = 1u,     // ToolContact::energy
+  kToolStiffness = 2u,  // ToolContact::stiffness, stiffness_psd
+  kToolAll = 3u,
+};
+
 // What a tool at a fixed pose feels from the surface with the nodes held.
 struct ToolContact {
   double energy = 0;                  // J
@@ -116,18 +174,21 @@ double contact_modulus(const Model& model);
 // `out`; when node_force is given adds the layer's force on every node to it, and when
 // node_block is given adds each node's lumped stiffness block sum w lambda p' n n^T (a positive
 // semi-definite bound on the layer's stiffness at that node, what implicit and semi-implicit
-// updates use) to node_block[i].
+// updates use) to node_block[i]. `terms` (ToolTerms) leaves out what the caller does not read
+// (left zero in `out`): the contact stage asks for the node terms only.
 void tool_contact(const Model& model, int probe, double radius, const Vec3& pose,
                   const std::vector<Vec3>& x, const int* tris, int n, ToolContact* out,
-                  Vec3* node_force = nullptr, Mat3* node_block = nullptr);
+                  Vec3* node_force = nullptr, Mat3* node_block = nullptr,
+                  unsigned terms = kToolAll);
 
 // The proxy stage for probe k: moves the proxy of *probe (from its last pose, carried by the
 // surface, toward probe->center) and fills probe->force, stiffness, depth, contacts, proxy and
-// anchor, with the nodes held at x. `candidates` (capacity: every surface triangle, so nothing is
-// allocated) is left holding the triangles within reach of the tool, what the step's contact
-// stage then evaluates; nullptr: every triangle is tested (slower, same result).
+// anchor, with the nodes held at x. `candidates` (reserved for the model, so nothing is
+// allocated; one per probe keeps its list between updates) is left holding in
+// candidates->triangles the triangles within reach of the tool, what the step's contact stage
+// then evaluates; nullptr: every triangle is tested (slower, same result).
 void update_proxy(const Model& model, int k, const std::vector<Vec3>& x,
-                  std::vector<int>* candidates, ProbeState* probe);
+                  ContactCandidates* candidates, ProbeState* probe);
 
 // Probe k's tool radius (m): the live one in its state, else the model's.
 double probe_radius(const Model& model, int k, const ProbeState& probe);

@@ -89,11 +89,11 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
     }
     const ProbeState& p = s.probes[q];
     if (!p.active || !p.proxy_placed) continue;
-    const std::vector<int>& cand = ws.contact.candidates[q];
+    const std::vector<int>& cand = ws.contact.candidates[q].triangles;
     ToolContact c;
     tool_contact(m, static_cast<int>(q), probe_radius(m, static_cast<int>(q), p), p.proxy, s.x,
                  cand.data(), static_cast<int>(cand.size()), &c, ws.force.data(),
-                 ws.contact.block.data());
+                 ws.contact.block.data(), kToolForceOnly);
     if (c.faces == 0) continue;
     friction_forces(m, static_cast<int>(q), p, s.x, ws.force.data(), ws.contact.block.data());
     for (int t : cand)
@@ -196,7 +196,7 @@ bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, do
 }
 
 void probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
-                   double radius, ProbeState* probe, std::vector<int>* candidates) {
+                   double radius, ProbeState* probe, ContactCandidates* candidates) {
   probe->center = center;
   probe->active = true;
   if (radius > 0) probe->radius = radius;

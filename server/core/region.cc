@@ -127,7 +127,7 @@ void update_region(const Model& m, State& s, Workspace& ws) {
     c[np++] = p.proxy_placed && m.probes[q].contact == ContactModel::kSurface ? p.proxy : p.center;
     // The nodes of the triangles the tool touches are awake, however large the triangles are.
     if (p.proxy_placed)
-      for (int t : ws.contact.candidates[q])
+      for (int t : ws.contact.candidates[q].triangles)
         if (tool_touches(m, static_cast<int>(q), rp, p.proxy, s.x, t))
           for (int i : m.surface[t]) s.region.wake[i] = 1;
   }

@@ -83,6 +83,7 @@
 #include <memory>
 #include <vector>
 
+#include "core/contact.h"
 #include "core/model.h"
 
 namespace conica {
@@ -182,8 +183,7 @@ struct ContactScratch {
   std::vector<int> nodes;                // (num_nodes)
   std::vector<std::uint8_t> in_contact;  // (num_nodes)
   int num_nodes = 0;
-  std::vector<std::vector<int>> candidates;  // (probes) surface triangles near each proxy,
-                                             // capacity reserved for every triangle
+  std::vector<ContactCandidates> candidates;  // (probes) surface triangles near each proxy
 };
 
 // The implicit integrator's system and solver scratch (implicit.cc). Node vectors are
@@ -278,7 +278,7 @@ bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, do
 // device), stiffness and contacts against node positions x, without touching the nodes. What the
 // server answers a probe update with between ticks. `candidates` as in update_proxy.
 void probe_contact(const Model& model, const std::vector<Vec3>& x, int k, const Vec3& center,
-                   double radius, ProbeState* probe, std::vector<int>* candidates = nullptr);
+                   double radius, ProbeState* probe, ContactCandidates* candidates = nullptr);
 
 // After model.options changed between ticks (damping over the control socket, say): rebuilds the
 // Workspace from the model (what it derived from the options: the far field's interval and

@@ -7,8 +7,8 @@ namespace conica::net {
 void probe_contact(const Model& model, const State& state, int k, const Vec3& center, double radius,
                    ProbeState* probe) {
   // The triangles near the tool, kept per thread so a reply allocates nothing once warm.
-  thread_local std::vector<int> candidates;
-  if (candidates.capacity() < model.surface.size()) candidates.reserve(model.surface.size());
+  thread_local ContactCandidates candidates;
+  candidates.reserve(model);
   conica::probe_contact(model, state.x, k, center, radius, probe, &candidates);
 }
 

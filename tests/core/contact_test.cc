@@ -10,6 +10,8 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <random>
 
 #include "core/body.h"
@@ -182,8 +184,7 @@ TEST(ProxyTest, NeverCrossesTheSurfaceHoweverFarTheDeviceJumps) {
   const double R = 0.25 * kSpacing;
   const Model m = Block(R);
   State s = make_state(m);
-  std::vector<int> cand;
-  cand.reserve(m.surface.size());
+  ContactCandidates cand(m);
   ProbeState& p = s.probes[0];
   set_probe(s, 0, Vec3(0.021, 0.019, kTop + 0.01));
   update_proxy(m, 0, s.x, &cand, &p);
@@ -199,6 +200,43 @@ TEST(ProxyTest, NeverCrossesTheSurfaceHoweverFarTheDeviceJumps) {
     EXPECT_GT(p.force.z(), 0);  // pulls the device back out
     EXPECT_TRUE(p.force.allFinite() && p.stiffness.allFinite());
   }
+}
+
+TEST(ProxyTest, CandidateListHoldsEveryTriangleTheToolReaches) {
+  // The body steps while the device presses, drags, lifts off and jumps back in. Each tick the
+  // proxy is also updated from the same state with every surface triangle tested (no candidate
+  // list): the kept list (ContactCandidates) must give the same proxy, force and faces, while it
+  // passes over the whole surface on only a few of the ticks.
+  const double R = 0.004;
+  const Model m = Block(R, ToolShape::kSphere, Integrator::kImplicitEuler);
+  State s = make_state(m);
+  Workspace ws(m);
+  const Vec3 at(0.0213, 0.0187, kTop + R);
+  const int ticks = 1200;
+  int touching = 0;
+  for (int t = 0; t < ticks; ++t) {
+    Vec3 target = at - Vec3(0, 0, 1.5e-3 * std::min(1.0, t / 200.0));  // press 1.5 mm
+    if (t >= 300) target += Vec3(1e-5 * (t - 300), 0, 0);              // drag 5 mm at 10 mm/s
+    if (t >= 800) target += Vec3(0, 0, 0.01);                          // lift off
+    if (t >= 900) target = Vec3(0.012, 0.028, kTop + R - 1e-3);        // and jump back in
+    ProbeState all = s.probes[0];
+    all.center = target;
+    all.active = true;
+    update_proxy(m, 0, s.x, nullptr, &all);
+    set_probe(s, 0, target);
+    step(m, s, ws);  // the proxy stage with the kept list, then the body
+    const ProbeState& kept = s.probes[0];
+    ASSERT_EQ(kept.contacts, all.contacts) << "tick " << t;
+    ASSERT_NEAR((kept.proxy - all.proxy).norm(), 0.0, 1e-9 * R) << "tick " << t;
+    ASSERT_NEAR((kept.force - all.force).norm(), 0.0, 1e-6 * (all.force.norm() + 1e-6))
+        << "tick " << t;
+    touching += kept.contacts > 0;
+  }
+  const std::uint64_t passes = ws.contact.candidates[0].passes;
+  std::printf("%d of %d ticks touching, %lu passes over the surface\n", touching, ticks,
+              static_cast<unsigned long>(passes));
+  EXPECT_GT(touching, 900);
+  EXPECT_LT(passes, static_cast<std::uint64_t>(ticks / 10));
 }
 
 TEST(ProxyTest, ToolPlacedInsideTheBodyStartsOnTheNearestSurface) {
@@ -420,6 +458,80 @@ TEST(ProxyTest, PunchPressesThroughItsProxyAlongItsAxis) {
   ToolContact c;
   tool_contact(m, 0, R, p.proxy, s.x, nullptr, 0, &c);
   EXPECT_NEAR((c.force - p.force).norm(), 0.0, 1e-4 * c.force.norm());
+}
+
+}  // namespace
+}  // namespace conica
+
+namespace conica {
+namespace {
+
+// The built-in cube (net/builtin_scenes.cc: 40 mm, 7 x 7 x 4 cells, its conical card,
+// symplectic Euler at 1 kHz) with a 5 mm sphere on the surface contact.
+Model BuiltinCube(Integrator integ) {
+  SpringCard c;
+  c.conical = ConicalCard{2e9, 1e-3, 2e-3, 8e-3, 10e-3, 3};
+  c.stiffness_cap = 20;
+  BodySpec b =
+      LatticeWithTool(Vec3(0.04, 0.04, 0.04), {7, 7, 4}, c, 5e-3, ToolShape::kSphere, integ, 5);
+  Model m;
+  EXPECT_EQ(build_model(b, &m), "");
+  return m;
+}
+
+// The device's force (N, +z) after `ticks` with the target path depth(t) (m below the top face at
+// its centre), and the smallest force over the ticks whose target is inside the rest surface.
+struct PressRun {
+  double final_force = 0;  // mean of the last 200 ticks
+  double min_inside = 1e30;
+  double max_force = 0;
+  std::vector<double> force;
+};
+template <typename Depth>
+PressRun Press(const Model& m, int ticks, Depth depth) {
+  State s = make_state(m);
+  Workspace ws(m);
+  const double R = m.probes[0].radius, top = 0.04;
+  PressRun r;
+  r.force.reserve(ticks);
+  double sum = 0;
+  for (int t = 0; t < ticks; ++t) {
+    const double d = depth(t);
+    set_probe(s, 0, Vec3(0.0203, 0.0197, top + R - d));
+    step(m, s, ws);
+    const double f = s.probes[0].force.z();
+    r.force.push_back(f);
+    if (d > 1e-4) r.min_inside = std::min(r.min_inside, f);
+    r.max_force = std::max(r.max_force, f);
+    if (t >= ticks - 200) sum += f;
+  }
+  r.final_force = sum / 200;
+  return r;
+}
+
+TEST(ProxyTest, DeviceThatJumpsDeepKeepsContactAndSettlesToTheQuasiStaticForce) {
+  // The device appears 2 mm deep in the built-in cube in one tick (the scenes' smoke test) and
+  // stays. Against the same depth reached by a slow press (2 mm over 1 s, then held): with
+  // implicit Euler every tick feels a force and the force settles to the slow press's. Symplectic
+  // Euler does not hold it yet (docs/contact.md, "Not yet"): its run is measured and printed.
+  for (Integrator integ : {Integrator::kImplicitEuler, Integrator::kSymplecticEuler}) {
+    const Model m = BuiltinCube(integ);
+    const double D = 2e-3;
+    const PressRun slow = Press(m, 3000, [&](int t) { return D * std::min(1.0, t / 1000.0); });
+    const PressRun jump = Press(m, 3000, [&](int) { return D; });
+    int zero = 0;
+    for (double f : jump.force) zero += !(f > 0);
+    std::printf(
+        "%s: slow press %.4f N; jump: last 0.2 s %.4f N, smallest %.4g N, largest %.4f N, %d of "
+        "3000 ticks without force\n",
+        integrator_name(integ), slow.final_force, jump.final_force, jump.min_inside, jump.max_force,
+        zero);
+    EXPECT_GT(slow.final_force, 0);
+    if (integ == Integrator::kSymplecticEuler) continue;
+    EXPECT_EQ(zero, 0) << integrator_name(integ);
+    EXPECT_NEAR(jump.final_force, slow.final_force, 0.02 * slow.final_force)
+        << integrator_name(integ);
+  }
 }
 
 }  // namespace
