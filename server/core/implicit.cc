@@ -353,7 +353,9 @@ void system_coefficients(const Model& m, Workspace& ws, double h) {
 }
 
 // Preconditioned CG from dx = 0 on A dx = rhs within the budget; returns the iterations taken.
-int solve(const Model& m, Workspace& ws) {
+// precondition(r, z) sets z = P r and returns r.z.
+template <typename Precondition>
+int pcg(const Model& m, Workspace& ws, Precondition&& precondition) {
   const int nn = m.num_nodes(), n3 = 3 * nn;
   double* __restrict dx = ws.system.dx.data();
   double* __restrict r = ws.system.r.data();
@@ -363,7 +365,7 @@ int solve(const Model& m, Workspace& ws) {
   const double* __restrict rhs = ws.system.rhs.data();
   std::fill(dx, dx + n3, 0.0);
   std::copy(rhs, rhs + n3, r);
-  double rz = precondition(nn, ws.system.pre.data(), r, z);
+  double rz = precondition(r, z);
   std::copy(z, z + n3, p);
   const double bnorm2 = dot(n3, r, r);
   const double tol2 = m.options.cg_tolerance * m.options.cg_tolerance * bnorm2;
@@ -383,7 +385,7 @@ int solve(const Model& m, Workspace& ws) {
       ++it;
       break;
     }
-    const double rz_new = precondition(nn, ws.system.pre.data(), r, z);
+    const double rz_new = precondition(r, z);
     const double beta = rz_new / rz;
     rz = rz_new;
     for (int k = 0; k < n3; ++k) p[k] = z[k] + beta * p[k];
@@ -391,45 +393,20 @@ int solve(const Model& m, Workspace& ws) {
   return it;
 }
 
-// CG as solve() with the factor's A_f^-1 as the preconditioner (LinearSolver::kFactorCG).
+// CG with the block-Jacobi preconditioner.
+int solve(const Model& m, Workspace& ws) {
+  const int nn = m.num_nodes();
+  const double* pre = ws.system.pre.data();
+  return pcg(m, ws, [nn, pre](const double* r, double* z) { return precondition(nn, pre, r, z); });
+}
+
+// CG with the factor's A_f^-1 as the preconditioner (LinearSolver::kFactorCG).
 int solve_factored(const Model& m, Workspace& ws, SystemFactor& factor) {
-  const int nn = m.num_nodes(), n3 = 3 * nn;
-  double* __restrict dx = ws.system.dx.data();
-  double* __restrict r = ws.system.r.data();
-  double* __restrict z = ws.system.z.data();
-  double* __restrict p = ws.system.p.data();
-  double* __restrict ap = ws.system.ap.data();
-  const double* __restrict rhs = ws.system.rhs.data();
-  std::fill(dx, dx + n3, 0.0);
-  std::copy(rhs, rhs + n3, r);
-  factor.solve(r, z);
-  double rz = dot(n3, r, z);
-  std::copy(z, z + n3, p);
-  const double bnorm2 = dot(n3, r, r);
-  const double tol2 = m.options.cg_tolerance * m.options.cg_tolerance * bnorm2;
-  int it = 0;
-  for (; it < m.options.cg_iterations && bnorm2 > 0; ++it) {
-    apply_system(m, ws, p, ap);
-    const double pap = dot(n3, p, ap);
-    if (!(pap > 0)) break;
-    const double step = rz / pap;
-    double rr = 0;
-    for (int k = 0; k < n3; ++k) {
-      dx[k] += step * p[k];
-      r[k] -= step * ap[k];
-      rr += r[k] * r[k];
-    }
-    if (rr <= tol2) {
-      ++it;
-      break;
-    }
+  const int n3 = 3 * m.num_nodes();
+  return pcg(m, ws, [n3, &factor](const double* r, double* z) {
     factor.solve(r, z);
-    const double rz_new = dot(n3, r, z);
-    const double beta = rz_new / rz;
-    rz = rz_new;
-    for (int k = 0; k < n3; ++k) p[k] = z[k] + beta * p[k];
-  }
-  return it;
+    return dot(n3, r, z);
+  });
 }
 
 // One Newton iteration's solve with LinearSolver::kFactorCG: takes a factor the worker finished,
