@@ -69,6 +69,14 @@ for _ in $(seq 60); do
 done
 sinfo -h -o "%P %T %c" || { cat "$work"/log/*; exit 1; }
 
+# Waits (at most 2 min) until the jobs of a comma-separated list have left the queue.
+wait_jobs() {
+  for _ in $(seq 240); do
+    [[ -z $(squeue -h -j "$1" 2>/dev/null) ]] && return 0
+    sleep 0.5
+  done
+}
+
 args=(--scene "$PWD/configs/phantom-cylinder.pbtxt" --data-dir "$data"
       --recipes EF10_0T,EF30_0T,EF30_50T,EF50_50T --full-iterations -1 --points 12
       --poisson-grid 1 --threads 1)
@@ -79,10 +87,7 @@ array=$(sbatch --parsable --array=0-3 --cpus-per-task=1 \
   "$OLDPWD/scripts/slurm/calibrate-library.sbatch" "${args[@]}" --out "$work/cluster")
 merge=$(sbatch --parsable --dependency=afterok:"$array" \
   "$OLDPWD/scripts/slurm/merge-library.sbatch" "${args[@]}" --out "$work/cluster")
-for _ in $(seq 240); do
-  [[ -z $(squeue -h -j "$array,$merge" 2>/dev/null) ]] && break
-  sleep 0.5
-done
+wait_jobs "$array,$merge"
 cat "$work"/conica-library-*.out
 [[ -f $work/cluster/index.csv ]] || { echo "ci-cluster: the merge wrote no index"; cat "$work"/log/*; exit 1; }
 # The same sweep in one process.
@@ -97,10 +102,7 @@ array=$(sbatch --parsable --array=0-2 --cpus-per-task=1 \
   "$OLDPWD/scripts/slurm/lab-sweep.sbatch" "${stab[@]}" --out "$work/stab-cluster")
 merge=$(sbatch --parsable --dependency=afterok:"$array" \
   "$OLDPWD/scripts/slurm/lab-merge.sbatch" "${stab[@]}" --out "$work/stab-cluster")
-for _ in $(seq 240); do
-  [[ -z $(squeue -h -j "$array,$merge" 2>/dev/null) ]] && break
-  sleep 0.5
-done
+wait_jobs "$array,$merge"
 cat "$work"/conica-sweep-*.out
 [[ -f $work/stab-cluster.csv ]] || { echo "ci-cluster: the stability merge wrote no CSV"; cat "$work"/log/*; exit 1; }
 "$lab" "${stab[@]}" --out "$work/stab-single" >/dev/null
