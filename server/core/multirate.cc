@@ -61,7 +61,7 @@ LocalModel::LocalModel(int cap)
       jac(9 * static_cast<size_t>(cap) * cap, 0.0),
       rhs(3 * static_cast<size_t>(cap), 0.0),
       g(9 * static_cast<size_t>(cap), 0.0),
-      pivot(3 * static_cast<size_t>(cap), 0) {}
+      pivot(4 * static_cast<size_t>(cap), 0) {}
 
 LocalModelBuilder::LocalModelBuilder(const Model& m)
     : factor_(std::make_unique<SystemFactor>(m)),
@@ -140,21 +140,29 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   probe->active = true;
   if (radius > 0) probe->radius = radius;
   for (int a = 0; a < num; ++a) lm.dx[a].setZero();
+  int* act = lm.pivot.data() + 3 * lm.capacity;  // the active nodes (in contact now or at x0)
+  int* piv = lm.pivot.data();
+  int na = 0;
 
-  // f, dfdc at x0 + dx; returns |R|_inf with R in lm.rhs (R = dx - W [f - f0 + B0 dx]).
+  // f, dfdc at x0 + dx and the active set; R = dx - W [f - f0 + B0 dx] into lm.rhs (only the
+  // active nodes carry a nonzero bracket); returns |R|_inf.
   auto residual = [&]() {
+    na = 0;
     for (int a = 0; a < num; ++a) {
       Vec3 dir;
-      if (!node_contact(lm.x0[a] + lm.dx[a], m.normal[lm.nodes[a]], center, R, kc, &lm.f[a],
-                        &lm.dfdc[a], &dir)) {
+      const bool in = node_contact(lm.x0[a] + lm.dx[a], m.normal[lm.nodes[a]], center, R, kc,
+                                   &lm.f[a], &lm.dfdc[a], &dir);
+      if (!in) {
         lm.f[a].setZero();
         lm.dfdc[a].setZero();
       }
+      if (in || lm.f0[a].squaredNorm() > 0 || lm.b0[a].squaredNorm() > 0) act[na++] = a;
     }
     double worst = 0;
     for (int row = 0; row < n3; ++row) {
       double s = 0;
-      for (int b = 0; b < num; ++b) {
+      for (int t = 0; t < na; ++t) {
+        const int b = act[t];
         const Vec3 q = lm.f[b] - lm.f0[b] + lm.b0[b] * lm.dx[b];
         const double* wr = &lm.w[row * ld + 3 * b];
         s += wr[0] * q[0] + wr[1] * q[1] + wr[2] * q[2];
@@ -164,27 +172,36 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     }
     return worst;
   };
-  // J = I - W (B0 + dfdc) (dfdc = df/dx: the node force depends on x - c), LU-factored in jac.
+  // (W Q)_{row, active column}, Q = B0 + dfdc (dfdc = df/dx: the node force depends on x - c).
+  auto wq = [&](int row, int t, int cb) {
+    const int b = act[t];
+    const Mat3 q = lm.b0[b] + lm.dfdc[b];
+    const double* wr = &lm.w[row * ld + 3 * b];
+    return wr[0] * q(0, cb) + wr[1] * q(1, cb) + wr[2] * q(2, cb);
+  };
+  // J = I - W Q has identity columns off the active set: LU of its active block J_AA in jac.
   auto factor_jacobian = [&]() {
-    for (int row = 0; row < n3; ++row)
-      for (int b = 0; b < num; ++b) {
-        const Mat3 q = lm.b0[b] + lm.dfdc[b];
-        const double* wr = &lm.w[row * ld + 3 * b];
-        for (int cb = 0; cb < 3; ++cb)
-          lm.jac[row * ld + 3 * b + cb] =
-              (row == 3 * b + cb ? 1.0 : 0.0) -
-              (wr[0] * q(0, cb) + wr[1] * q(1, cb) + wr[2] * q(2, cb));
-      }
-    return lu_factor(lm.jac.data(), n3, ld, lm.pivot.data());
+    const int n = 3 * na;
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c)
+        lm.jac[r * ld + c] = (r == c ? 1.0 : 0.0) - wq(3 * act[r / 3] + r % 3, c / 3, c % 3);
+    return lu_factor(lm.jac.data(), n, ld, piv);
   };
 
   const double tol = 1e-9 * std::max(R, 1e-6);
   double res = n3 > 0 ? residual() : 0;
   int it = 0;
-  for (; it < kMaxNewton && res > tol; ++it) {
+  double* d = lm.g.data();  // the active block's step (3 na <= 3 capacity)
+  for (; it < kMaxNewton && res > tol && na > 0; ++it) {
     if (!factor_jacobian()) break;
-    for (int row = 0; row < n3; ++row) lm.rhs[row] = -lm.rhs[row];
-    lu_solve(lm.jac.data(), n3, ld, lm.pivot.data(), lm.rhs.data());
+    // J d = -R: the active rows by the LU, then each other row d_r = -R_r + (W Q)_{rA} d_A.
+    for (int r = 0; r < 3 * na; ++r) d[r] = -lm.rhs[3 * act[r / 3] + r % 3];
+    lu_solve(lm.jac.data(), 3 * na, ld, piv, d);
+    for (int row = 0; row < n3; ++row) {
+      double s = -lm.rhs[row];
+      for (int c = 0; c < 3 * na; ++c) s += wq(row, c / 3, c % 3) * d[c];
+      lm.rhs[row] = s;  // the step of every row (the active ones reproduce d)
+    }
     for (int a = 0; a < num; ++a)
       lm.dx[a] += Vec3(lm.rhs[3 * a], lm.rhs[3 * a + 1], lm.rhs[3 * a + 2]);
     res = residual();
@@ -200,25 +217,29 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     if (lm.f[a].squaredNorm() > 0) ++probe->contacts;
   }
   // Stiffness dF/dc = sum_a dfdc_a (I - G_a), G = dx/dc = -J^-1 W S, S the stacked dfdc (the
-  // node force depends on x - c, so df/dc = -dfdc and dR/dc = W S).
-  if (n3 > 0 && probe->contacts > 0 && factor_jacobian()) {
+  // node force depends on x - c, so df/dc = -dfdc and dR/dc = W S); dfdc is zero off the active
+  // set, so only G_A is needed: J_AA G_A = -(W S)_A.
+  if (na > 0 && probe->contacts > 0 && factor_jacobian()) {
+    const int n = 3 * na;
     for (int cc = 0; cc < 3; ++cc) {
-      double* col = &lm.g[cc * ld];
-      for (int row = 0; row < n3; ++row) {
+      double* col = d + cc * ld;
+      for (int r = 0; r < n; ++r) {
+        const int row = 3 * act[r / 3] + r % 3;
         double s = 0;
-        for (int b = 0; b < num; ++b) {
+        for (int t = 0; t < na; ++t) {
+          const int b = act[t];
           const double* wr = &lm.w[row * ld + 3 * b];
           s += wr[0] * lm.dfdc[b](0, cc) + wr[1] * lm.dfdc[b](1, cc) + wr[2] * lm.dfdc[b](2, cc);
         }
-        col[row] = s;
+        col[r] = -s;
       }
-      lu_solve(lm.jac.data(), n3, ld, lm.pivot.data(), col);
+      lu_solve(lm.jac.data(), n, ld, piv, col);
     }
-    for (int a = 0; a < num; ++a) {
+    for (int t = 0; t < na; ++t) {
       Mat3 G;
       for (int r = 0; r < 3; ++r)
-        for (int cc = 0; cc < 3; ++cc) G(r, cc) = -lm.g[cc * ld + 3 * a + r];
-      probe->stiffness += lm.dfdc[a] * (Mat3::Identity() - G);
+        for (int cc = 0; cc < 3; ++cc) G(r, cc) = d[cc * ld + 3 * t + r];
+      probe->stiffness += lm.dfdc[act[t]] * (Mat3::Identity() - G);
     }
   }
   if (x)
