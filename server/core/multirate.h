@@ -46,7 +46,7 @@ struct LocalModel {
   std::vector<Vec3> f, dx;
   std::vector<Mat3> dfdc;
   std::vector<double> jac, rhs, g;
-  std::vector<int> pivot;  // (4 capacity) LU pivots, then the active nodes
+  std::vector<int> pivot;     // (4 capacity) LU pivots, then the active nodes
   int newton_iterations = 0;  // of the last haptic_contact
   double residual = 0;        // m, its final |R(dx)|
 };
