@@ -13,6 +13,7 @@ namespace {
 Model body_model(const Model& served, int every) {
   Model b = served;
   b.options.dt = served.options.dt * every;  // the probes' node stiffness stays the served one
+  prime_body_model(&b);
   return b;
 }
 
@@ -37,6 +38,7 @@ BodyWorker::BodyWorker(const Model& served, const State& rest)
     s.x = rest.x;
   }
   input_ = rest.probes;
+  prime_workspace(ws_);
   thread_ = std::thread([this] { run(); });
 }
 
@@ -73,18 +75,17 @@ void BodyWorker::run() {
       }
     }
     std::copy(body_state_.x.begin(), body_state_.x.end(), out.x.begin());
-    body_ns_.store(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                       std::chrono::steady_clock::now() - t0)
-                       .count(),
-                   std::memory_order_relaxed);
+    body_ns_.store(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0)
+            .count(),
+        std::memory_order_relaxed);
     int expected = kRun;
     state_.compare_exchange_strong(expected, kDone, std::memory_order_acq_rel);
   }
 }
 
-void BodyWorker::answer(const Model& served, const std::vector<Vec3>& x, int k,
-                        const Vec3& center, double radius, ProbeState* probe,
-                        std::vector<Vec3>* x_out) {
+void BodyWorker::answer(const Model& served, const std::vector<Vec3>& x, int k, const Vec3& center,
+                        double radius, ProbeState* probe, std::vector<Vec3>* x_out) {
   LocalModel& lm = snap_[front_].local[k];
   const double R = radius > 0 ? radius : probe->radius;
   if (lm.valid && (center - lm.center0).norm() <= reach_) {

@@ -44,12 +44,14 @@ std::string prepare_scene(const BodySpec& spec, const PrepareOptions& opt, Scene
     const int every =
         std::max(1, static_cast<int>(std::lround(1.0 / (period_s * m->options.body_rate_hz))));
     b.options.dt = m->options.dt * every;
+    prime_body_model(&b);
     budget_s = period_s * every;
     n = std::max(1, std::min(n, 5));
     SteadyClock clock;
     State s = make_state(b);
     Workspace ws(b);
     LocalModelBuilder builder(b);
+    prime_workspace(ws);
     LocalModel lm;
     std::vector<double> cost(n);
     for (int k = 0; k < n; ++k) {

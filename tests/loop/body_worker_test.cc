@@ -95,11 +95,12 @@ TEST(BodyWorkerTest, PerTickForceFollowsTheBodySolvedEveryTick) {
     if (ref_force[t].norm() > 0.2 * fmax) worst = std::max(worst, d.norm() / ref_force[t].norm());
   }
   const double rms = std::sqrt(err2 / ref2);
-  std::printf("largest force %.4f N; per-tick RMS error %.2f %%, worst %.2f %% (above 20 %% of "
-              "the largest); %llu body steps, %llu frozen answers, %llu late ticks\n",
-              fmax, 100 * rms, 100 * worst, static_cast<unsigned long long>(worker.body_steps()),
-              static_cast<unsigned long long>(worker.frozen_answers()),
-              static_cast<unsigned long long>(worker.late_ticks()));
+  std::printf(
+      "largest force %.4f N; per-tick RMS error %.2f %%, worst %.2f %% (above 20 %% of "
+      "the largest); %llu body steps, %llu frozen answers, %llu late ticks\n",
+      fmax, 100 * rms, 100 * worst, static_cast<unsigned long long>(worker.body_steps()),
+      static_cast<unsigned long long>(worker.frozen_answers()),
+      static_cast<unsigned long long>(worker.late_ticks()));
   EXPECT_GT(fmax, 0.05);
   EXPECT_LT(rms, 0.02);
   EXPECT_GE(worker.body_steps(), static_cast<std::uint64_t>(kTicks / 20 - 1));
