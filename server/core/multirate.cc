@@ -136,6 +136,37 @@ bool LocalModelBuilder::build(const Model& m, State& s, Workspace& ws, int k, do
   return true;
 }
 
+void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
+                          double radius, double margin, std::vector<std::pair<double, int>>* near,
+                          LocalModel* lm) {
+  const int nn = m.num_nodes();
+  const double reach = radius + margin, kt = 0.1 * m.probes[k].stiffness;
+  near->clear();
+  for (int i = 0; i < nn; ++i) {
+    if (m.fixed[i] == 7) continue;
+    const double d2 = (x[i] - center).squaredNorm();
+    if (d2 < reach * reach) near->emplace_back(d2, i);
+  }
+  const int num = std::min<int>(lm->capacity, static_cast<int>(near->size()));
+  std::partial_sort(near->begin(), near->begin() + num, near->end());
+  lm->num = num;
+  lm->center0 = center;
+  lm->valid = false;  // an estimate, not a body step's model
+  const int ld = 3 * lm->capacity;
+  for (int a = 0; a < num; ++a) {
+    const int i = (*near)[a].second;
+    lm->nodes[a] = i;
+    lm->x0[a] = x[i];
+    lm->f0[a].setZero();
+    lm->b0[a].setZero();
+  }
+  for (int r = 0; r < 3 * num; ++r)
+    for (int c = 0; c < 3 * num; ++c) {
+      const int i = lm->nodes[r / 3];
+      lm->w[r * ld + c] = r == c && m.free_axes[i][r % 3] > 0 && kt > 0 ? 1.0 / kt : 0.0;
+    }
+}
+
 void prime_body_model(Model* body) {
   body->options.refactor_every = 0;
   body->options.refactor_iterations = std::numeric_limits<int>::max();

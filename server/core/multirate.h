@@ -69,6 +69,16 @@ class LocalModelBuilder {
   std::vector<std::pair<double, int>> near_;
 };
 
+// Until a body step has built a local model around the probe (the probe just arrived, or moved
+// beyond the last model's reach), an estimate: the region around `center` at positions x, each
+// node behind its own share of the tissue (W = I / k_t per node, k_t = a tenth of the node
+// penalty, what the multi-rate default derives it from: E* times the median spring length) and
+// no force at the base state. `near` is scratch of the model's node count (reserved). Allocates
+// nothing.
+void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
+                          double radius, double margin, std::vector<std::pair<double, int>>* near,
+                          LocalModel* lm);
+
 // A multi-rate body's options and workspace: with kFactorCG its step never factors a system of
 // its own (the builder hands it a fresh supernodal factor after every step; until the first, CG
 // is block-Jacobi preconditioned).

@@ -38,6 +38,7 @@ BodyWorker::BodyWorker(const Model& served, const State& rest)
     s.x = rest.x;
   }
   input_ = rest.probes;
+  near_.reserve(served.num_nodes());
   prime_workspace(ws_);
   thread_ = std::thread([this] { run(); });
 }
@@ -91,7 +92,8 @@ void BodyWorker::answer(const Model& served, const std::vector<Vec3>& x, int k, 
   if (lm.valid && (center - lm.center0).norm() <= reach_) {
     haptic_contact(served, lm, k, center, R, probe, x_out);
   } else {
-    probe_contact(served, x, k, center, R, probe);
+    estimate_local_model(served, x, k, center, R, reach_, &near_, &estimate_);
+    haptic_contact(served, estimate_, k, center, R, probe, x_out);
     ++frozen_;
   }
 }

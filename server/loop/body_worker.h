@@ -9,7 +9,7 @@
 // behind leaves the tick on the last local model (late_ticks counts the ticks a step was due but
 // the thread was still busy). A probe farther from where the body step saw it than the local
 // model's reach, or one with no local model yet, is answered by the node law against the body's
-// last positions (the frozen body).
+// last positions with each node behind its own share of the tissue (estimate_local_model).
 #pragma once
 
 #include <atomic>
@@ -44,7 +44,7 @@ class BodyWorker {
   double reach() const { return reach_; }
   std::uint64_t body_steps() const { return body_steps_; }  // swapped in
   std::uint64_t late_ticks() const { return late_ticks_; }
-  std::uint64_t frozen_answers() const { return frozen_; }  // answered by the frozen body
+  std::uint64_t frozen_answers() const { return frozen_; }  // answered by the estimate
   // The body thread's last step plus local models, ns (relaxed; for statistics).
   std::int64_t last_body_ns() const { return body_ns_.load(std::memory_order_relaxed); }
 
@@ -65,6 +65,8 @@ class BodyWorker {
   int every_ = 1;
   double reach_ = 0;  // m, the region's margin beyond the probe radius
   Snapshot snap_[2];
+  LocalModel estimate_;                       // until a body step's model covers the probe
+  std::vector<std::pair<double, int>> near_;  // (nodes) the estimate's scratch
   int front_ = 0, back_ = 1;
   std::vector<ProbeState> input_;  // the poses of the next body step
   std::atomic<int> state_{kIdle};

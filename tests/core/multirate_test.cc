@@ -147,6 +147,28 @@ TEST_P(MultirateTest, StiffnessIsTheForceDerivative) {
   EXPECT_LT(std::abs(p.stiffness(2, 2)), 0.8 * std::abs(held.stiffness(2, 2)));
 }
 
+// Before a body step has built a model around it, a probe is answered by the estimate: each
+// node behind its own share of the tissue k_t, in series with the node penalty k_c, so a sphere
+// pressing one node along its normal by d feels k_c k_t / (k_c + k_t) d.
+TEST(MultirateEstimateTest, OneNodePressedFeelsThePenaltyInSeriesWithTheTissue) {
+  const Model m = Block(true);
+  const State s = make_state(m);
+  std::vector<std::pair<double, int>> near;
+  near.reserve(m.num_nodes());
+  LocalModel lm;
+  const double kc = m.probes[0].stiffness, kt = 0.1 * kc;
+  for (double d : {0.1e-3, 0.5e-3, 1e-3}) {
+    const Vec3 c = kTop + Vec3(0, 0, kRadius - d);
+    estimate_local_model(m, s.x, 0, c, kRadius, kRadius, &near, &lm);
+    ASSERT_GT(lm.num, 1);
+    ProbeState p;
+    haptic_contact(m, lm, 0, c, kRadius, &p, nullptr);
+    EXPECT_EQ(p.contacts, 1);
+    EXPECT_NEAR(p.force.z(), kc * kt / (kc + kt) * d, 1e-9 * kc * d) << d;
+    EXPECT_LT(std::abs(p.force.x()) + std::abs(p.force.y()), 1e-9 * kc * d);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(TetsAndHexes, MultirateTest, ::testing::Bool(),
                          [](const auto& info) { return info.param ? "tets" : "hexes"; });
 
