@@ -10,12 +10,31 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <new>
 #include <thread>
 #include <vector>
 
 #include "../core/lattice_meshes.h"
 #include "core/body.h"
 #include "core/step.h"
+
+// Counts operator new on the thread that sets t_counting (the tick's; the body thread allocates
+// inside CHOLMOD and is not counted).
+namespace {
+thread_local bool t_counting = false;
+thread_local long t_allocations = 0;
+}  // namespace
+void* operator new(std::size_t n) {
+  if (t_counting) ++t_allocations;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n) { return operator new(n); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 namespace conica::loop {
 namespace {
@@ -104,6 +123,33 @@ TEST(BodyWorkerTest, PerTickForceFollowsTheBodySolvedEveryTick) {
   EXPECT_GT(fmax, 0.05);
   EXPECT_LT(rms, 0.02);
   EXPECT_GE(worker.body_steps(), static_cast<std::uint64_t>(kTicks / 20 - 1));
+}
+
+// The tick and the probe reply allocate nothing, with the body thread stepping beside them and
+// the probe both inside and beyond the local model's reach (the estimate).
+TEST(BodyWorkerTest, TicksAndRepliesAllocateNothing) {
+  const Model m = Block();
+  State s = make_state(m);
+  BodyWorker worker(m, s);
+  for (int t = 0; t < 300; ++t) {  // into contact, body steps done
+    set_probe(s, 0, Path(t));
+    worker.tick(m, s);
+    while (worker.stepping()) std::this_thread::sleep_for(std::chrono::microseconds(50));
+  }
+  ASSERT_GT(s.probes[0].contacts, 0);
+  const std::uint64_t estimates = worker.frozen_answers();
+  t_allocations = 0;
+  t_counting = true;
+  for (int t = 300; t < 500; ++t) {
+    const Vec3 c = Path(t) + Vec3(t >= 450 ? 3e-3 : 0, 0, 0);  // the last 50 beyond reach
+    set_probe(s, 0, c);
+    worker.tick(m, s);
+    ProbeState reply = s.probes[0];
+    worker.contact(m, s, 0, c, kRadius, &reply);
+  }
+  t_counting = false;
+  EXPECT_EQ(t_allocations, 0);
+  EXPECT_GT(worker.frozen_answers(), estimates);
 }
 
 }  // namespace
