@@ -7,25 +7,10 @@
 #include <limits>
 #include <new>
 
+#include "../counting_new.h"
 #include "core/body.h"
 #include "core/step.h"
 #include "tissue_bar.h"
-
-namespace {
-std::atomic<long> g_allocations{0};
-std::atomic<bool> g_counting{false};
-}  // namespace
-
-void* operator new(std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) ++g_allocations;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 namespace conica {
 namespace {
@@ -33,11 +18,7 @@ namespace {
 // Operator new calls made while f runs.
 template <class F>
 long AllocationsDuring(F&& f) {
-  g_allocations = 0;
-  g_counting = true;
-  f();
-  g_counting = false;
-  return g_allocations.load();
+  return counting_new::during(f);
 }
 
 TEST(AllocationTest, StepAllocatesNothing) {

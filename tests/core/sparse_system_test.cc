@@ -22,33 +22,22 @@
 #include "loop/factor_worker.h"
 
 // Allocations made on a thread while it counts (operator new and CHOLMOD's malloc).
+#include "../counting_new.h"
+
 namespace {
-thread_local bool t_counting = false;
-thread_local long t_allocations = 0;
 void* counting_malloc(std::size_t n) {
-  if (t_counting) ++t_allocations;
+  if (counting_new::counting) ++counting_new::allocations;
   return std::malloc(n);
 }
 void* counting_calloc(std::size_t n, std::size_t k) {
-  if (t_counting) ++t_allocations;
+  if (counting_new::counting) ++counting_new::allocations;
   return std::calloc(n, k);
 }
 void* counting_realloc(void* p, std::size_t n) {
-  if (t_counting) ++t_allocations;
+  if (counting_new::counting) ++counting_new::allocations;
   return std::realloc(p, n);
 }
 }  // namespace
-
-void* operator new(std::size_t n) {
-  if (t_counting) ++t_allocations;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 namespace conica {
 namespace {
@@ -268,11 +257,12 @@ TEST(SparseFactorWorkerTest, StepAllocatesNothingWhileAWorkerFactors) {
     loop::FactorWorker worker(ws.factor.get());
     for (int k = 0; k < 200; ++k) {
       Press(s, 3e-3 * std::min(1.0, (k + 1) / 100.0));
-      t_counting = true;
+      counting_new::counting = true;
       step(m, s, ws);
-      t_counting = false;
-      if (k > 0) allocations += t_allocations;  // the first step's assembly sizes nothing either
-      t_allocations = 0;
+      counting_new::counting = false;
+      if (k > 0)
+        allocations += counting_new::allocations;  // the first step's assembly sizes nothing either
+      counting_new::allocations = 0;
       std::this_thread::sleep_for(std::chrono::microseconds(200));  // a 1 kHz loop's rest
     }
   }

@@ -19,22 +19,8 @@
 #include "core/body.h"
 #include "core/step.h"
 
-// Counts operator new on the thread that sets t_counting (the tick's; the body thread allocates
-// inside CHOLMOD and is not counted).
-namespace {
-thread_local bool t_counting = false;
-thread_local long t_allocations = 0;
-}  // namespace
-void* operator new(std::size_t n) {
-  if (t_counting) ++t_allocations;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+// Counts operator new on this thread (the body thread allocates inside CHOLMOD, uncounted).
+#include "../counting_new.h"
 
 namespace conica::loop {
 namespace {
@@ -138,17 +124,16 @@ TEST(BodyWorkerTest, TicksAndRepliesAllocateNothing) {
   }
   ASSERT_GT(s.probes[0].contacts, 0);
   const std::uint64_t estimates = worker.frozen_answers();
-  t_allocations = 0;
-  t_counting = true;
-  for (int t = 300; t < 500; ++t) {
-    const Vec3 c = Path(t) + Vec3(t >= 450 ? 3e-3 : 0, 0, 0);  // the last 50 beyond reach
-    set_probe(s, 0, c);
-    worker.tick(m, s);
-    ProbeState reply = s.probes[0];
-    worker.contact(m, s, 0, c, kRadius, &reply);
-  }
-  t_counting = false;
-  EXPECT_EQ(t_allocations, 0);
+  const long allocations = counting_new::during([&] {
+    for (int t = 300; t < 500; ++t) {
+      const Vec3 c = Path(t) + Vec3(t >= 450 ? 3e-3 : 0, 0, 0);  // the last 50 beyond reach
+      set_probe(s, 0, c);
+      worker.tick(m, s);
+      ProbeState reply = s.probes[0];
+      worker.contact(m, s, 0, c, kRadius, &reply);
+    }
+  });
+  EXPECT_EQ(allocations, 0);
   EXPECT_GT(worker.frozen_answers(), estimates);
 }
 

@@ -20,19 +20,8 @@
 #include "loop/memory_transport.h"
 #include "loop/scene.h"
 
-// Counts operator new while `g_counting` is set (the tick path must allocate nothing).
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+// Counts operator new on this thread (the tick path must allocate nothing).
+#include "../counting_new.h"
 
 namespace conica::loop {
 namespace {
@@ -480,11 +469,10 @@ TEST(LoopAllocationTest, TicksAndProbeRepliesAllocateNothing) {
   loop.install(std::move(scene));
   loop.begin(clock, client);
   for (int k = 0; k < 10; ++k) ASSERT_TRUE(loop.tick());  // warm up
-  g_allocations = 0;
-  g_counting = true;
-  for (int k = 0; k < 1000; ++k) loop.tick();
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(counting_new::during([&] {
+              for (int k = 0; k < 1000; ++k) loop.tick();
+            }),
+            0);
   EXPECT_EQ(loop.stats().ticks, 1010u);
   EXPECT_GE(loop.stats().probes_received, 1000u);
   EXPECT_EQ(loop.stats().replies_sent, loop.stats().probes_received);
