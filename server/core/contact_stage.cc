@@ -107,11 +107,34 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
     pl.contacts = 0;
     const Vec3& n = m.planes[q].normal;
     const double kp = m.planes[q].stiffness;
+    const double mu = pl.stick.empty() ? 0.0 : m.planes[q].friction;
     for (int t = 0; t < nn; ++t) {
       const int i = nodes ? (*nodes)[t] : t;
       const double depth = pl.offset - n.dot(s.x[i]);
-      if (depth <= 0) continue;
-      const Vec3 f = kp * depth * n;
+      if (depth <= 0) {
+        if (mu > 0) pl.stick[i].x() = std::nan("");
+        continue;
+      }
+      Vec3 f = kp * depth * n;
+      if (mu > 0 && m.fixed[i] != 7) {
+        // Coulomb: a tangential penalty toward the stick point; past mu |f_n| the stick point is
+        // dragged along (return mapping), so the node slides with |f_t| = mu |f_n|.
+        Vec3& a = pl.stick[i];
+        if (std::isnan(a.x())) a = s.x[i];
+        Vec3 d = s.x[i] - a;
+        d -= n.dot(d) * n;
+        const double limit = mu * kp * depth, dn = d.norm();
+        if (kp * dn > limit) {
+          d *= limit / (kp * dn);
+          a = s.x[i] - d;
+        } else {
+          // Sticking: the tangential penalty's stiffness for the implicit system (and the
+          // explicit integrators' semi-implicit contact nodes).
+          ws.contact.block[i] += kp * (Mat3::Identity() - n * n.transpose());
+          list_contact_node(ws, i);
+        }
+        f -= kp * d;
+      }
       ws.force[i] += f;
       pl.force -= f;
       ++pl.contacts;

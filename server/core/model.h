@@ -134,6 +134,10 @@ struct PlaneSpec {
   bool bonded = false;
   double bond_tolerance = 0;      // m; 0: 1e-6 of the body's size
   std::vector<int> bonded_nodes;  // filled by build_model
+  // Coulomb friction (0: frictionless): a node behind the plate sticks to the point where it
+  // met it, held there by a tangential penalty of the same stiffness, and slides when that force
+  // would exceed friction times its normal force (core/contact_stage.cc). Not on bonded nodes.
+  double friction = 0;
 };
 
 // A node set moved along a prescribed path (core/boundary.h): on the selected axes its nodes sit
@@ -230,6 +234,9 @@ struct PlaneState {
   double offset = 0;          // m, current offset (plates move)
   Vec3 force = Vec3::Zero();  // N, on the plate
   int contacts = 0;
+  // A frictional plate's stick points (num_nodes; empty when frictionless), m: where each node
+  // behind it is held tangentially; x NaN for a node not in contact.
+  std::vector<Vec3> stick;
 };
 
 // The stages of a tick (core/step.h), in the order Counters::stage_ns and the published

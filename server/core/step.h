@@ -204,6 +204,7 @@ struct SystemScratch {
 struct Rollback {
   std::vector<Vec3> x, v;
   std::vector<double> maxwell;
+  std::vector<std::vector<Vec3>> stick;  // (planes) each frictional plate's stick points
 };
 
 struct Workspace {

@@ -162,3 +162,121 @@ TEST(QuasiStaticTest, PunchNeedsANodeUnderIt) {
 
 }  // namespace
 }  // namespace conica::lab
+
+namespace conica::lab {
+namespace {
+
+// A block on a frictionless base (held in z, pinned against rigid motion), the top plate
+// frictionless, frictional with mu, or bonded to the top face (its nodes glued to it), pressed
+// 1 % quasi-statically: the plate force.
+double TopPlateForce(double mu, bool bonded) {
+  BodySpec spec = Block(3, 2, 0.03, 0.02);
+  ensure_top_plate(&spec);
+  FixedSelector base;
+  base.kind = FixedSelector::Kind::kPlane;
+  base.offset = 0;
+  base.axes = 4;
+  FixedSelector pin;
+  pin.kind = FixedSelector::Kind::kNodes;
+  pin.nodes = {0};
+  pin.axes = 3;
+  FixedSelector pin2 = pin;
+  pin2.nodes = {3};
+  pin2.axes = 2;
+  spec.fixed = {base, pin, pin2};
+  spec.planes[0].friction = mu;
+  if (bonded) {
+    spec.planes[0].bonded = true;
+    spec.planes[0].bond_tolerance = 1e-9;
+    spec.planes[0].offset = -0.02;  // on the top face
+  }
+  Model m;
+  EXPECT_EQ(build_model(spec, &m), "");
+  m.planes[0].stiffness = rigid_plate_stiffness(m, false);
+  QuasiStaticOptions o;
+  o.samples = 4;
+  o.tolerance = 1e-6;
+  QuasiStaticStats st;
+  const double f =
+      quasi_static_curve(m, plate_load(m), plate_reaction(), 2e-4, o, &st).back().force;
+  EXPECT_EQ(st.unconverged, 0);
+  return f;
+}
+
+TEST(PlateFrictionTest, CompressionForceRisesWithFrictionFromFrictionlessToBonded) {
+  // Friction only acts on the lateral spread under the plate: mu = 0 is the frictionless test,
+  // and a coefficient high enough that no node slides is the top face glued to the plate
+  // (bonded nodes move with it; here they are held by the stick penalty of the plate's rigid
+  // stiffness instead, so the two differ by that penalty's compliance only).
+  const double free = TopPlateForce(0, false), glued = TopPlateForce(0, true);
+  ASSERT_GT(glued, free * 1.005) << "bonding must stiffen the block for the test to mean anything";
+  EXPECT_DOUBLE_EQ(TopPlateForce(0, false), free);
+  double last = free;
+  for (double mu : {0.01, 0.05, 0.2, 10.0}) {
+    const double f = TopPlateForce(mu, false);
+    EXPECT_GE(f, last * (1 - 1e-6)) << "mu " << mu;
+    last = f;
+  }
+  EXPECT_GT(TopPlateForce(0.01, false), free * (1 + 1e-4)) << "a little friction adds force";
+  EXPECT_NEAR(last, glued, 0.01 * (glued - free) + 1e-3 * glued)
+      << "sticking everywhere is the bonded top face";
+}
+
+// Coulomb's law itself: a block resting under gravity on a frictional floor and pushed
+// sideways by a body force. Below mu g it stays (the floor carries the push); above it slides
+// with the floor's tangential force equal to mu times its normal force, accelerating at
+// (g_x - mu g) like a rigid block.
+TEST(PlateFrictionTest, BlockOnAFloorSticksBelowMuGAndSlidesAtCoulombsLawAbove) {
+  for (const double push : {0.2, 0.5}) {  // g_x / g, against mu = 0.3
+    BodySpec spec = Block(2, 1, 0.02, 0.01);
+    spec.fixed.clear();
+    PlaneSpec floor;
+    floor.normal = Vec3::UnitZ();
+    floor.offset = 0;
+    floor.friction = 0.3;
+    floor.stiffness = 2e4;  // N/m per node
+    spec.planes = {floor};
+    spec.options.integrator = Integrator::kImplicitEuler;
+    spec.options.dt = 1e-3;
+    spec.options.newton_iterations = 3;
+    spec.options.cg_iterations = 200;
+    spec.options.cg_tolerance = 1e-12;
+    spec.options.mass_damping = 0;
+    const double g = 9.81;
+    spec.options.gravity = Vec3(push * g, 0, -g);
+    Model m;
+    ASSERT_EQ(build_model(spec, &m), "");
+    State s = make_state(m);
+    Workspace ws(m);
+    double total_mass = 0;
+    for (double mi : m.mass) total_mass += mi;
+    // Settle on the floor with no push, then push for 0.2 s.
+    m.options.gravity = Vec3(0, 0, -g);
+    for (int k = 0; k < 300; ++k) {
+      for (Vec3& v : s.v) v *= 0.9;  // let it come to rest
+      step(m, s, ws);
+    }
+    m.options.gravity = Vec3(push * g, 0, -g);
+    Vec3 x0 = Vec3::Zero();
+    for (const Vec3& x : s.x) x0 += x / m.num_nodes();
+    const int n = 200;
+    for (int k = 0; k < n; ++k) step(m, s, ws);
+    Vec3 x1 = Vec3::Zero();
+    for (const Vec3& x : s.x) x1 += x / m.num_nodes();
+    const Vec3 F = -s.planes[0].force;  // on the body
+    EXPECT_NEAR(F.z(), total_mass * g, 1e-3 * total_mass * g) << "push " << push;
+    EXPECT_EQ(s.counters.rollbacks, 0u);
+    const double t = n * m.options.dt;
+    if (push < 0.3) {
+      EXPECT_NEAR(F.x(), -push * total_mass * g, 1e-3 * total_mass * g) << "sticking";
+      EXPECT_LT(std::abs(x1.x() - x0.x()), 1e-4) << "a stuck block does not travel";
+    } else {
+      EXPECT_NEAR(F.x(), -0.3 * F.z(), 1e-3 * F.z()) << "sliding: |F_t| = mu F_n";
+      const double a = (push - 0.3) * g;
+      EXPECT_NEAR(x1.x() - x0.x(), 0.5 * a * t * t, 0.05 * 0.5 * a * t * t) << "Coulomb slide";
+    }
+  }
+}
+
+}  // namespace
+}  // namespace conica::lab
