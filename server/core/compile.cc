@@ -275,15 +275,12 @@ Workspace::Workspace(const Model& m)
   good.x.assign(m.num_nodes(), Vec3::Zero());
   good.v.assign(m.num_nodes(), Vec3::Zero());
   good.maxwell.assign(m.num_springs(), 0);
-<<<<<<< Updated upstream
   if (m.options.integrator == Integrator::kImplicitEuler &&
       m.options.linear_solver == LinearSolver::kFactorCG)
     factor = std::make_unique<FactorScratch>(m);
-=======
   good.stick.resize(m.planes.size());
   for (size_t q = 0; q < m.planes.size(); ++q)
     if (m.planes[q].friction > 0) good.stick[q].assign(m.num_nodes(), Vec3::Zero());
->>>>>>> Stashed changes
 }
 
 Workspace::~Workspace() = default;
