@@ -555,7 +555,7 @@ State make_state(const Model& model) {
   for (size_t k = 0; k < model.planes.size(); ++k) {
     s.planes[k].offset = model.planes[k].offset;
     if (model.planes[k].friction > 0)
-      s.planes[k].stick.assign(model.rest.size(), Vec3::Constant(std::nan("")));
+      s.planes[k].stick = model.rest;  // the nodes where they are (the plate at its start)
   }
   // Active region: everything awake until the first tick chooses. Chunk entries are sized for the
   // most a layout can have (one spring each).

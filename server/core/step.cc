@@ -106,6 +106,7 @@ void substep(const Model& m, State& s, Workspace& ws) {
   }
   lap(s, ws, Stage::kIntegrate);
   hard_stop(m, s, ws);
+  commit_friction(m, s);
   relax_maxwell(m, s, substep_of(m));
   lap(s, ws, Stage::kHardStop);
 }

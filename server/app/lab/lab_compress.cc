@@ -94,6 +94,11 @@ void register_compress(CLI::App& app, Runner* run) {
         std::fprintf(stderr, "conica-lab compress: %s: %s\n", o->scene.c_str(), e.c_str());
         return 2;
       }
+      if (!o->bonded && m.planes[0].friction > 0)
+        std::fprintf(stderr,
+                     "conica-lab compress: frictional plates: the moving plate with Coulomb "
+                     "friction %.4g\n",
+                     m.planes[0].friction);
       CompressionStats st;
       Curve c;
       if (o->bonded || o->quasi_static) {
@@ -109,15 +114,16 @@ void register_compress(CLI::App& app, Runner* run) {
         st.dt = qo.dt;
         st.rollbacks = qs.rollbacks;
         st.plate_stiffness = m.planes[0].stiffness;
-        std::fprintf(stderr,
-                     "conica-lab compress: quasi-static, %s plates, %d increments, %ld implicit "
-                     "steps; %s: worst out-of-balance %.2g of the reaction (tolerance %.2g), %d "
-                     "increment(s) unconverged, rollbacks %llu, hard stops %llu\n",
-                     o->bonded ? "bonded" : (m.planes[0].friction > 0 ? "frictional" : "frictionless"),
-                     qs.increments, qs.steps,
-                     qs.unconverged == 0 ? "converged" : "NOT CONVERGED", qs.worst_residual,
-                     qo.tolerance, qs.unconverged, static_cast<unsigned long long>(qs.rollbacks),
-                     static_cast<unsigned long long>(qs.hard_stops));
+        std::fprintf(
+            stderr,
+            "conica-lab compress: quasi-static, %s plates, %d increments, %ld implicit "
+            "steps; %s: worst out-of-balance %.2g of the reaction (tolerance %.2g), %d "
+            "increment(s) unconverged, rollbacks %llu, hard stops %llu\n",
+            o->bonded ? "bonded" : (m.planes[0].friction > 0 ? "frictional" : "frictionless"),
+            qs.increments, qs.steps, qs.unconverged == 0 ? "converged" : "NOT CONVERGED",
+            qs.worst_residual, qo.tolerance, qs.unconverged,
+            static_cast<unsigned long long>(qs.rollbacks),
+            static_cast<unsigned long long>(qs.hard_stops));
       } else if (o->static_solve) {
         c = static_compression_curve(m, o->to_strain, o->samples, &st, o->static_tolerance);
       } else {
