@@ -56,8 +56,8 @@ TEST(PlateFrictionTest, DraggedPlateSticksBelowMuFnAndSlidesAtMuFn) {
   ASSERT_EQ(build_model(spec, &m), "");
   const double start = m.planes[0].offset;
   const int press_steps = 10, drag_steps = 25;
-  const double du = press / press_steps;                  // m, travel per increment
-  const double ds = 8 * mu * press / drag_steps;          // m, drag per increment
+  const double du = press / press_steps;          // m, travel per increment
+  const double ds = 8 * mu * press / drag_steps;  // m, drag per increment
   auto drag = [&](double u) { return std::max(0.0, u - press) * ds / du; };
   LoadFn load = [&](const Model&, State& s, double u) {  // press, then drag along x
     s.planes[0].offset = start + std::min(u, press);
@@ -149,15 +149,13 @@ Compression Compress(double mu, bool bonded) {
   o.tolerance = 1e-6;
   QuasiStaticStats st;
   Compression r;
-  for (const CurvePoint& p :
-       quasi_static_curve(m, plate_load(m), plate_reaction(), 2e-3, o, &st))
+  for (const CurvePoint& p : quasi_static_curve(m, plate_load(m), plate_reaction(), 2e-3, o, &st))
     r.force.push_back(p.force);
   EXPECT_EQ(st.unconverged, 0) << "mu " << mu;
   for (int i = 0; i < m.num_nodes(); ++i)
     if (m.rest[i].z() > 0.02 - 1e-9)
-      r.spread =
-          std::max(r.spread, std::hypot(st.positions[i].x() - m.rest[i].x(),
-                                        st.positions[i].y() - m.rest[i].y()));
+      r.spread = std::max(r.spread, std::hypot(st.positions[i].x() - m.rest[i].x(),
+                                               st.positions[i].y() - m.rest[i].y()));
   return r;
 }
 
@@ -273,8 +271,7 @@ TEST_P(FloorFriction, BlockSticksBelowMuGAndSlidesAtCoulombsLawAbove) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Integrators, FloorFriction,
-                         ::testing::Values(Integrator::kImplicitEuler,
-                                           Integrator::kSymplecticEuler,
+                         ::testing::Values(Integrator::kImplicitEuler, Integrator::kSymplecticEuler,
                                            Integrator::kExplicitEuler));
 
 }  // namespace
