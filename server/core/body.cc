@@ -516,8 +516,11 @@ std::string build_model(const BodySpec& spec, Model* out) {
     if (p.contact == ContactModel::kNodes && p.stiffness <= 0)
       p.stiffness = m.options.body_rate_hz > 0 ? multirate_node_stiffness() : k_default;
   }
-  for (auto& p : m.planes) {
+  for (size_t k = 0; k < m.planes.size(); ++k) {
+    PlaneSpec& p = m.planes[k];
     if (!(p.normal.norm() > 0)) return "plane normal must be nonzero";
+    if (!(p.friction >= 0) || !std::isfinite(p.friction))
+      return "plane " + std::to_string(k) + ": friction must be >= 0 (a Coulomb coefficient)";
     p.normal.normalize();
     if (p.stiffness <= 0) p.stiffness = k_default;
   }
@@ -561,7 +564,11 @@ State make_state(const Model& model) {
   s.probes.resize(model.probes.size());
   for (size_t k = 0; k < model.probes.size(); ++k) s.probes[k].radius = model.probes[k].radius;
   s.planes.resize(model.planes.size());
-  for (size_t k = 0; k < model.planes.size(); ++k) s.planes[k].offset = model.planes[k].offset;
+  for (size_t k = 0; k < model.planes.size(); ++k) {
+    s.planes[k].offset = model.planes[k].offset;
+    if (model.planes[k].friction > 0)
+      s.planes[k].stick = model.rest;  // the nodes where they are (the plate at its start)
+  }
   // Active region: everything awake until the first tick chooses. Chunk entries are sized for the
   // most a layout can have (one spring each).
   const size_t nn = model.rest.size(), ns = model.rest_length.size();

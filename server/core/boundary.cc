@@ -88,7 +88,8 @@ void apply_boundary_motion(const Model& m, State& s, double t) {
   for (size_t k = 0; k < m.planes.size(); ++k) {
     const PlaneSpec& p = m.planes[k];
     if (!p.bonded) continue;
-    const Vec3 d = (s.planes[k].offset - p.offset) * p.normal;
+    const Vec3 d = (s.planes[k].offset - p.offset) * p.normal + s.planes[k].slide -
+                   p.normal.dot(s.planes[k].slide) * p.normal;
     for (int i : p.bonded_nodes) {
       s.x[i] = m.rest[i] + d;
       s.v[i].setZero();

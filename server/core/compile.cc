@@ -278,6 +278,9 @@ Workspace::Workspace(const Model& m)
   if (m.options.integrator == Integrator::kImplicitEuler &&
       m.options.linear_solver == LinearSolver::kFactorCG)
     factor = std::make_unique<FactorScratch>(m);
+  good.stick.resize(m.planes.size());
+  for (size_t q = 0; q < m.planes.size(); ++q)
+    if (m.planes[q].friction > 0) good.stick[q].assign(m.num_nodes(), Vec3::Zero());
 }
 
 Workspace::~Workspace() = default;

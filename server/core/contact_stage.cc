@@ -107,11 +107,27 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
     pl.contacts = 0;
     const Vec3& n = m.planes[q].normal;
     const double kp = m.planes[q].stiffness;
+    const double mu = pl.stick.empty() ? 0.0 : m.planes[q].friction;
+    const Vec3 slide = pl.slide - n.dot(pl.slide) * n;
+    const Mat3 tangential = Mat3::Identity() - n * n.transpose();
     for (int t = 0; t < nn; ++t) {
       const int i = nodes ? (*nodes)[t] : t;
       const double depth = pl.offset - n.dot(s.x[i]);
       if (depth <= 0) continue;
-      const Vec3 f = kp * depth * n;
+      Vec3 f = kp * depth * n;
+      if (mu > 0 && m.fixed[i] != 7) {
+        // Coulomb by a tangential penalty toward the committed stick point (plate frame), held
+        // inside the cone |f_t| <= mu k_p depth (plate_friction_force); the stick point moves
+        // only in commit_friction, so every Newton iterate of a step sees the same one. A node
+        // that meets the plate during a step sticks where it was at the step's start.
+        const Vec3 d = tangential * (s.x[i] - slide - pl.stick[i]);
+        Mat3 kt;  // N/m, -d(f_t)/dx: the friction term's stiffness for the implicit system
+        f += plate_friction_force(d, kp, mu * kp * depth, tangential, &kt);
+        if (with_jacobian) {
+          ws.contact.block[i] += kt;
+          list_contact_node(ws, i);
+        }
+      }
       ws.force[i] += f;
       pl.force -= f;
       ++pl.contacts;
@@ -121,6 +137,52 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
         ws.contact.n[i] = std::sqrt(h * h * kp) * n;
         list_contact_node(ws, i);
       }
+    }
+  }
+}
+
+Vec3 plate_friction_force(const Vec3& d, double kp, double limit, const Mat3& tangential,
+                          Mat3* stiffness) {
+  const double dn = d.norm();
+  if (!(limit > 0)) {
+    stiffness->setZero();
+    return Vec3::Zero();
+  }
+  const double z = kp * dn / limit;
+  if (!(z > 1e-12)) {
+    *stiffness = kp * tangential;
+    return -kp * d;
+  }
+  const Vec3 u = d / dn;
+  const Mat3 along = u * u.transpose();
+  const double zc = std::min(z, kFrictionSlipStretch), th = std::tanh(zc);
+  const double sech = 1 / std::cosh(zc);
+  *stiffness = (z < kFrictionSlipStretch ? kp * sech * sech : 0.0) * along +
+               (limit * th / dn) * (tangential - along);
+  return -limit * th * u;
+}
+
+void commit_friction(const Model& m, State& s) {
+  for (size_t q = 0; q < m.planes.size(); ++q) {
+    PlaneState& pl = s.planes[q];
+    if (pl.stick.empty() || !(m.planes[q].friction > 0)) continue;
+    const Vec3& n = m.planes[q].normal;
+    const double mu = m.planes[q].friction;
+    const Vec3 slide = pl.slide - n.dot(pl.slide) * n;
+    const Mat3 tangential = Mat3::Identity() - n * n.transpose();
+    for (int i = 0; i < m.num_nodes(); ++i) {
+      Vec3& a = pl.stick[i];
+      const Vec3 p = s.x[i] - slide;  // the node in the plate's frame
+      const double depth = pl.offset - n.dot(s.x[i]);
+      if (depth <= 0) {  // free: its stick point follows it, for when it meets the plate
+        a = p;
+        continue;
+      }
+      // Return mapping (the penalty is common to both sides): |d| <= kFrictionSlipStretch mu
+      // depth, past which the node has slid.
+      const Vec3 d = tangential * (p - a);
+      const double dn = d.norm(), limit = kFrictionSlipStretch * mu * depth;
+      if (dn > limit) a += (1 - limit / dn) * d;
     }
   }
 }

@@ -52,11 +52,25 @@ double potential_energy(const Model& m, const State& s) {
     e += c.energy +
          0.5 * coupling_stiffness(m, static_cast<int>(q), R) * (p.proxy - p.center).squaredNorm();
   }
-  for (size_t q = 0; q < m.planes.size(); ++q)
-    for (const Vec3& x : s.x) {
-      const double depth = s.planes[q].offset - m.planes[q].normal.dot(x);
-      if (depth > 0) e += 0.5 * m.planes[q].stiffness * depth * depth;
+  for (size_t q = 0; q < m.planes.size(); ++q) {
+    const PlaneState& pl = s.planes[q];
+    const Vec3& n = m.planes[q].normal;
+    const double kp = m.planes[q].stiffness, mu = m.planes[q].friction;
+    for (size_t i = 0; i < s.x.size(); ++i) {
+      const double depth = pl.offset - n.dot(s.x[i]);
+      if (depth <= 0) continue;
+      e += 0.5 * kp * depth * depth;
+      // A frictional plate's tangential penalty (its return-mapped stretch, as the force pass).
+      if (pl.stick.empty() || m.fixed[i] == 7) continue;
+      Vec3 d = s.x[i] - pl.slide - pl.stick[i];
+      d -= n.dot(d) * n;
+      // int_0^|d| limit tanh(kp r / limit) dr, limit = mu kp depth (core/step_detail.h).
+      const double limit = mu * kp * depth;
+      if (limit > 0)
+        e += limit * limit / kp *
+             std::log(std::cosh(std::min(kp * d.norm() / limit, detail::kFrictionSlipStretch)));
     }
+  }
   const int nn = m.num_nodes();
   for (int i = 0; i < nn; ++i)
     e -= m.mass[i] * m.options.gravity.cwiseProduct(m.free_axes[i]).dot(s.x[i] - m.rest[i]);

@@ -139,6 +139,12 @@ struct PlaneSpec {
   bool bonded = false;
   double bond_tolerance = 0;      // m; 0: 1e-6 of the body's size
   std::vector<int> bonded_nodes;  // filled by build_model
+  // Coulomb friction coefficient (>= 0, dimensionless; 0: frictionless): a node behind the plate
+  // sticks to the point of the plate where it met it, held there by a tangential penalty of the
+  // same stiffness, and slides when that force would exceed friction times its normal force
+  // (return mapping, core/contact_stage.cc). Stick points are kept in the plate's frame, so they
+  // move with the plate (PlaneState::slide). Not on bonded nodes.
+  double friction = 0;
 };
 
 // A node set moved along a prescribed path (core/boundary.h): on the selected axes its nodes sit
@@ -232,9 +238,18 @@ struct ProbeState {
 };
 
 struct PlaneState {
-  double offset = 0;          // m, current offset (plates move)
+  double offset = 0;          // m, current offset (plates move along their normal)
+  Vec3 slide = Vec3::Zero();  // m, the plate's tangential travel from its start (plates move
+                              // along their face: carries stick points and bonded nodes; only
+                              // its part normal to the plate counts)
   Vec3 force = Vec3::Zero();  // N, on the plate
   int contacts = 0;
+  // A frictional plate's stick points (num_nodes; empty when frictionless), m, in the plate's
+  // frame (the world point is stick + slide; only the part along the face counts): where each
+  // node behind it is held tangentially; a node in front of it keeps its own position there, so
+  // a node that meets the plate during a step sticks where it was at the step's start. Updated at
+  // the end of each substep (commit_friction), read by the force passes.
+  std::vector<Vec3> stick;
 };
 
 // The stages of a tick (core/step.h), in the order Counters::stage_ns and the published

@@ -83,6 +83,9 @@ void save_good(const State& s, Workspace& ws, bool partial) {
     std::copy(s.v.begin(), s.v.end(), ws.good.v.begin());
   }
   if (ws.layout.has_maxwell) std::copy(s.maxwell.begin(), s.maxwell.end(), ws.good.maxwell.begin());
+  for (size_t q = 0; q < s.planes.size() && q < ws.good.stick.size(); ++q)
+    if (s.planes[q].stick.size() == ws.good.stick[q].size())
+      std::copy(s.planes[q].stick.begin(), s.planes[q].stick.end(), ws.good.stick[q].begin());
 }
 
 // One substep of the model's integrator, then the hard stop and the Maxwell branches.
@@ -103,6 +106,7 @@ void substep(const Model& m, State& s, Workspace& ws) {
   }
   lap(s, ws, Stage::kIntegrate);
   hard_stop(m, s, ws);
+  commit_friction(m, s);
   relax_maxwell(m, s, substep_of(m));
   lap(s, ws, Stage::kHardStop);
 }
@@ -120,6 +124,9 @@ StepStatus guard(const Model& m, State& s, Workspace& ws, bool partial) {
   std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
   if (ws.layout.has_maxwell)
     std::copy(ws.good.maxwell.begin(), ws.good.maxwell.end(), s.maxwell.begin());
+  for (size_t q = 0; q < s.planes.size() && q < ws.good.stick.size(); ++q)
+    if (s.planes[q].stick.size() == ws.good.stick[q].size())
+      std::copy(ws.good.stick[q].begin(), ws.good.stick[q].end(), s.planes[q].stick.begin());
   ++s.counters.rollbacks;
   return StepStatus::kRolledBack;
 }

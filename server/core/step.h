@@ -175,7 +175,8 @@ struct ElementScratch {
 
 // The contact stage's scratch (contact_stage.cc, core/contact.h). Planes: normal * sqrt(h^2 k_p)
 // per node behind a plate (implicit only). Probes: each node's lumped layer stiffness (N/m), what
-// the implicit system and the explicit integrators' semi-implicit contact update use. The first
+// the implicit system and the explicit integrators' semi-implicit contact update use; frictional
+// plates add their tangential stiffness there too (implicit only). The first
 // num_nodes entries of nodes list the nodes with either (in_contact flags them).
 struct ContactScratch {
   std::vector<Vec3> n;                   // (num_nodes)
@@ -204,6 +205,7 @@ struct SystemScratch {
 struct Rollback {
   std::vector<Vec3> x, v;
   std::vector<double> maxwell;
+  std::vector<std::vector<Vec3>> stick;  // (planes) each frictional plate's stick points
 };
 
 struct Workspace {

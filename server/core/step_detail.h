@@ -102,6 +102,20 @@ void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const
 // Probes and planes against the body: forces into ws.force, layer blocks, plane normals.
 void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                     const std::vector<int>* nodes = nullptr);
+// A frictional plate's tangential force on a node stretched d (m, along the plate) from its stick
+// point, with penalty kp (N/m) and cone limit = mu kp depth (N): f_t = -limit tanh(kp |d| / limit)
+// d / |d|, the penalty kp d for small stretches, saturating at the limit (a smooth stick-slip
+// transition, so Newton does not chatter between stick and slip); past a stretch of
+// kFrictionSlipStretch limit / kp the node slides (commit_friction drags its stick point) and the
+// force stays at tanh(kFrictionSlipStretch) = 0.9993 of the limit. *stiffness = -df_t/dd on the
+// plate, without the coupling to the depth (-d(limit)/d(depth) tanh(.) u n^T: not symmetric, and
+// the implicit system is solved by conjugate gradients).
+inline constexpr double kFrictionSlipStretch = 4.0;
+Vec3 plate_friction_force(const Vec3& d, double kp, double limit, const Mat3& tangential,
+                          Mat3* stiffness);
+// Frictional planes: each node's stick point after a substep, by the return mapping at the
+// substep's end positions (a node that slid drags it along, one that left the plate drops it).
+void commit_friction(const Model& m, State& s);
 // The proxy stage: every surface-contact probe's proxy toward its device target.
 void update_proxies(const Model& m, State& s, Workspace& ws);
 // Explicit integrators: nodes in contact advance with m (m I + h^2 B)^-1 f.

@@ -389,6 +389,10 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     if (!(pl.bond_tolerance >= 0) || !std::isfinite(pl.bond_tolerance))
       return Error{loc.at("plate", k) + "plate " + std::to_string(k) +
                    ": bond_tolerance must be >= 0 m"};
+    pl.friction = p.friction();
+    if (!(pl.friction >= 0) || !std::isfinite(pl.friction))
+      return Error{loc.at("plate", k) + "plate " + std::to_string(k) +
+                   ": friction must be >= 0 (a Coulomb coefficient)"};
     b.planes.push_back(pl);
   }
   const auto& s = scene.solver();

@@ -193,6 +193,7 @@ std::string scene_text(const SceneFile& s, const std::string& dir) {
     plate->set_stiffness(p.stiffness);
     plate->set_bonded(p.bonded);
     plate->set_bond_tolerance(p.bond_tolerance);
+    plate->set_friction(p.friction);
   }
   set_solver(b.options, scene.mutable_solver());
   return print(scene);

@@ -43,12 +43,19 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
   QuasiStaticStats st;
   double f = 0;
   // Equilibrium at travel u from the current state; false when it does not settle.
+  // Frictional plates: every iteration's return mapping starts from the stick points of the last
+  // equilibrium, so what an iteration that has not converged does to them (a node that slides
+  // only on its way) is not kept; the points are committed where the increment settles.
+  std::vector<std::vector<Vec3>> stick(m.planes.size());
   auto settle_at = [&](double u, double* rel) {
     load(m, s, u);
+    for (size_t q = 0; q < m.planes.size(); ++q) stick[q] = s.planes[q].stick;
     double last = std::numeric_limits<double>::quiet_NaN();
     for (int it = 0; it < o.max_iterations; ++it) {
       std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
       s.time = 0;
+      for (size_t q = 0; q < m.planes.size(); ++q)
+        std::copy(stick[q].begin(), stick[q].end(), s.planes[q].stick.begin());
       const auto t0 = std::chrono::steady_clock::now();
       step(m, s, ws);
       st.step_seconds +=

@@ -15,6 +15,9 @@
 //    squares over free axes) is below `tolerance` times the reaction, or
 //  - Settle::kReactionSteady: the reaction changes by less than `tolerance` (relative) between
 //    two iterations (cheaper with inexact Newton steps; the calibration's choice).
+// Frictional plates (PlaneSpec::friction) map every iteration's slip from the stick points of the
+// last equilibrium and keep the ones where the increment settles (the friction law is
+// path-dependent: the increments are its load steps).
 // An increment that does not settle within max_iterations is redone from the last equilibrium in
 // 2, 4, ... max_parts parts; if it still does not, it is counted as unconverged.
 #pragma once

@@ -104,6 +104,10 @@ TEST(SceneBoundaryTest, WrongBoundaryFieldsSayWhere) {
   EXPECT_EQ(ErrorOf(kBody + fixed +
                     "plate { normal { z: -1 } offset: -0.01 bonded: true bond_tolerance: -1 }"),
             "s.pbtxt:6:1: plate 0: bond_tolerance must be >= 0 m");
+  EXPECT_EQ(ErrorOf(kBody + fixed + "plate { normal { z: -1 } offset: -0.01 friction: -0.2 }"),
+            "s.pbtxt:6:1: plate 0: friction must be >= 0 (a Coulomb coefficient)");
+  EXPECT_EQ(ErrorOf(kBody + fixed + "plate { normal { z: -1 } offset: -0.01 friction: nan }"),
+            "s.pbtxt:6:1: plate 0: friction must be >= 0 (a Coulomb coefficient)");
   EXPECT_EQ(ErrorOf(kBody + fixed +
                     "fixed { plane { normal { z: 1 } offset: 0.01 } path { time: 1 } path { "
                     "time: 0.5 } }"),

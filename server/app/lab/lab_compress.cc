@@ -6,6 +6,8 @@
 //   --bonded: both plates bonded to the faces they touch (no slip); implies --quasi-static.
 //   --quasi-static: the plate moved in increments, the body at equilibrium after each one
 //   (lab/quasi_static.h), instead of at a rate with the scene's integrator.
+//   --friction MU: the moving plate with Coulomb friction MU (the base as the scene holds it).
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -25,6 +27,7 @@ void register_compress(CLI::App& app, Runner* run) {
     double to_strain = 0.5;
     int samples = 50;
     bool bonded = false, quasi_static = false;
+    double friction = 0;
     double tolerance = 1e-4;
     bool static_solve = false;
     double static_tolerance = 1e-5;
@@ -43,6 +46,10 @@ void register_compress(CLI::App& app, Runner* run) {
   cmd->add_option("--plot", o->plot, "also draw the curve to this PNG file");
   cmd->add_flag("--bonded", o->bonded,
                 "bond both plates to the faces they touch (no slip); implies --quasi-static");
+  cmd->add_option("--friction", o->friction,
+                  "Coulomb friction coefficient of the moving plate (0: frictionless; the base "
+                  "as the scene holds it)")
+      ->capture_default_str();
   cmd->add_flag("--quasi-static", o->quasi_static,
                 "move the plate in --samples increments, each brought to equilibrium");
   cmd->add_option("--tolerance", o->tolerance,
@@ -56,6 +63,12 @@ void register_compress(CLI::App& app, Runner* run) {
       ->capture_default_str();
   cmd->callback([o, run] {
     *run = [o]() -> int {
+      if (!(o->friction >= 0) || !std::isfinite(o->friction) || (o->friction > 0 && o->bonded)) {
+        std::fprintf(stderr,
+                     "conica-lab compress: --friction must be >= 0 and is not for --bonded "
+                     "plates (they do not slip)\n");
+        return 2;
+      }
       if (!(o->rate_mm_per_min > 0) || !(o->to_strain > 0 && o->to_strain < 1) || o->samples < 1) {
         std::fprintf(stderr,
                      "conica-lab compress: need --rate-mm-per-min > 0, 0 < --to-strain < 1, "
@@ -69,6 +82,7 @@ void register_compress(CLI::App& app, Runner* run) {
       }
       if (ensure_top_plate(&spec))
         std::fprintf(stderr, "conica-lab compress: the scene has no plate: added one on top\n");
+      if (o->friction > 0) spec.planes[0].friction = o->friction;
       if (o->bonded) {
         if (std::string e = bond_compression_plates(&spec); !e.empty()) {
           std::fprintf(stderr, "conica-lab compress: %s: %s\n", o->scene.c_str(), e.c_str());
@@ -80,6 +94,11 @@ void register_compress(CLI::App& app, Runner* run) {
         std::fprintf(stderr, "conica-lab compress: %s: %s\n", o->scene.c_str(), e.c_str());
         return 2;
       }
+      if (!o->bonded && m.planes[0].friction > 0)
+        std::fprintf(stderr,
+                     "conica-lab compress: frictional plates: the moving plate with Coulomb "
+                     "friction %.4g\n",
+                     m.planes[0].friction);
       CompressionStats st;
       Curve c;
       if (o->bonded || o->quasi_static) {
@@ -95,14 +114,16 @@ void register_compress(CLI::App& app, Runner* run) {
         st.dt = qo.dt;
         st.rollbacks = qs.rollbacks;
         st.plate_stiffness = m.planes[0].stiffness;
-        std::fprintf(stderr,
-                     "conica-lab compress: quasi-static, %s plates, %d increments, %ld implicit "
-                     "steps; %s: worst out-of-balance %.2g of the reaction (tolerance %.2g), %d "
-                     "increment(s) unconverged, rollbacks %llu, hard stops %llu\n",
-                     o->bonded ? "bonded" : "frictionless", qs.increments, qs.steps,
-                     qs.unconverged == 0 ? "converged" : "NOT CONVERGED", qs.worst_residual,
-                     qo.tolerance, qs.unconverged, static_cast<unsigned long long>(qs.rollbacks),
-                     static_cast<unsigned long long>(qs.hard_stops));
+        std::fprintf(
+            stderr,
+            "conica-lab compress: quasi-static, %s plates, %d increments, %ld implicit "
+            "steps; %s: worst out-of-balance %.2g of the reaction (tolerance %.2g), %d "
+            "increment(s) unconverged, rollbacks %llu, hard stops %llu\n",
+            o->bonded ? "bonded" : (m.planes[0].friction > 0 ? "frictional" : "frictionless"),
+            qs.increments, qs.steps, qs.unconverged == 0 ? "converged" : "NOT CONVERGED",
+            qs.worst_residual, qo.tolerance, qs.unconverged,
+            static_cast<unsigned long long>(qs.rollbacks),
+            static_cast<unsigned long long>(qs.hard_stops));
       } else if (o->static_solve) {
         c = static_compression_curve(m, o->to_strain, o->samples, &st, o->static_tolerance);
       } else {
