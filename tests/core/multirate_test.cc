@@ -17,8 +17,6 @@
 namespace conica {
 namespace {
 
-using testing_meshes::Tetrahedralised;
-
 constexpr double kBodyStep = 0.02;  // s: the body at 50 Hz
 constexpr double kRadius = 0.004;   // m
 const Vec3 kTop(0.01, 0.01, 0.015);
@@ -28,18 +26,7 @@ const Vec3 kTop(0.01, 0.01, 0.015);
 // would get (set: the default follows the lightest node); the body steps at 50 Hz with a converged
 // Newton iteration.
 Model Block(bool tets) {
-  BodySpec b;
-  b.mesh = make_box_lattice(Vec3(0.02, 0.02, 0.015), {4, 4, 3});
-  if (tets) b.mesh = Tetrahedralised(b.mesh);
-  b.density = 1070;
-  SpringCard c;
-  c.conical = ConicalCard{
-      2.0638952894602549e9, 1.6662609498394193e-3, 4.8853058085019819e-3, 8e-3, 10e-3, 3};
-  c.stiffness_cap = 1000;
-  b.groups.push_back({"silicone", c, kAllFamilies, {}, Vec3::Zero(), 10});
-  b.bulk_modulus = 137052.6;
-  b.spread_modulus = tets ? 0 : 137052.6;
-  b.shear_modulus = 15613.6;
+  BodySpec b = testing_meshes::Ef30Block(tets);
   FixedSelector base;
   base.kind = FixedSelector::Kind::kPlane;
   b.fixed.push_back(base);
@@ -80,15 +67,27 @@ Vec3 FullStep(const Model& m, const State& from, const Vec3& c) {
   return p.force;
 }
 
+// The block pressed 2 mm at its centre, at rest, and the local model its last step leaves.
+struct PressedBlock {
+  explicit PressedBlock(bool tets) : m(Block(tets)), ws(m), s(Pressed(m, ws, 2e-3)), builder(m) {
+    built = builder.build(m, s, ws, 0, 0.5 * kRadius, &lm);
+  }
+  Model m;
+  Workspace ws;
+  State s;
+  LocalModelBuilder builder;
+  LocalModel lm;
+  bool built = false;
+};
+
 class MultirateTest : public ::testing::TestWithParam<bool> {};
 
 TEST_P(MultirateTest, MovedProbeFeelsWhatAFullBodyStepGives) {
-  const Model m = Block(GetParam());
-  Workspace ws(m);
-  State s = Pressed(m, ws, 2e-3);
-  LocalModelBuilder builder(m);
-  LocalModel lm;
-  ASSERT_TRUE(builder.build(m, s, ws, 0, 0.5 * kRadius, &lm));
+  PressedBlock pb(GetParam());
+  ASSERT_TRUE(pb.built);
+  const Model& m = pb.m;
+  const State& s = pb.s;
+  LocalModel& lm = pb.lm;
   ASSERT_GT(lm.num, 4);
   ASSERT_LT(lm.num, lm.capacity);
 
@@ -123,12 +122,11 @@ TEST_P(MultirateTest, MovedProbeFeelsWhatAFullBodyStepGives) {
 }
 
 TEST_P(MultirateTest, StiffnessIsTheForceDerivative) {
-  const Model m = Block(GetParam());
-  Workspace ws(m);
-  State s = Pressed(m, ws, 2e-3);
-  LocalModelBuilder builder(m);
-  LocalModel lm;
-  ASSERT_TRUE(builder.build(m, s, ws, 0, 0.5 * kRadius, &lm));
+  PressedBlock pb(GetParam());
+  ASSERT_TRUE(pb.built);
+  const Model& m = pb.m;
+  const State& s = pb.s;
+  LocalModel& lm = pb.lm;
   const Vec3 c = Pose(2.2e-3, 0.3e-3);
   ProbeState p;
   haptic_contact(m, lm, 0, c, kRadius, &p, nullptr);

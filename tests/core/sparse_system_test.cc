@@ -48,19 +48,7 @@ using testing_meshes::Tetrahedralised;
 // frictionless base, pressed by a probe (node contact) and by a side plate; hexahedra or
 // tetrahedra. kFactorCG unless `jacobi`.
 Model Block(bool tets, bool jacobi = false) {
-  BodySpec b;
-  b.mesh = make_box_lattice(Vec3(0.02, 0.02, 0.015), {4, 4, 3});
-  if (tets) b.mesh = Tetrahedralised(b.mesh);
-  b.density = 1070;
-  SpringCard c;
-  c.conical = ConicalCard{
-      2.0638952894602549e9, 1.6662609498394193e-3, 4.8853058085019819e-3, 8e-3, 10e-3, 3};
-  c.stiffness_cap = 1000;
-  c.damping = 1e-3;
-  b.groups.push_back({"silicone", c, kAllFamilies, {}, Vec3::Zero(), 10});
-  b.bulk_modulus = 137052.6;
-  b.spread_modulus = tets ? 0 : 137052.6;
-  b.shear_modulus = 15613.6;
+  BodySpec b = testing_meshes::Ef30Block(tets, 1e-3);
   FixedSelector base;
   base.kind = FixedSelector::Kind::kPlane;
   base.axes = 4;  // z only: the base slides

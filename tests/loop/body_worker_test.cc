@@ -25,24 +25,13 @@
 namespace conica::loop {
 namespace {
 
-using testing_meshes::Tetrahedralised;
-
 constexpr double kRadius = 0.004;  // m
 const Vec3 kTop(0.01, 0.01, 0.015);
 
 // A 20 x 20 x 15 mm block of the EF30 card (volume and shear terms), tetrahedra, fixed base,
 // served at 1 kHz with the body at 50 Hz; the node stiffness is the multi-rate default.
 Model Block() {
-  BodySpec b;
-  b.mesh = Tetrahedralised(make_box_lattice(Vec3(0.02, 0.02, 0.015), {4, 4, 3}));
-  b.density = 1070;
-  SpringCard c;
-  c.conical = ConicalCard{
-      2.0638952894602549e9, 1.6662609498394193e-3, 4.8853058085019819e-3, 8e-3, 10e-3, 3};
-  c.stiffness_cap = 1000;
-  b.groups.push_back({"silicone", c, kAllFamilies, {}, Vec3::Zero(), 10});
-  b.bulk_modulus = 137052.6;
-  b.shear_modulus = 15613.6;
+  BodySpec b = testing_meshes::Ef30Block(true);
   FixedSelector base;
   base.kind = FixedSelector::Kind::kPlane;
   b.fixed.push_back(base);
