@@ -133,18 +133,21 @@ void update_proxies(const Model& m, State& s, Workspace& ws) {
       update_proxy(m, static_cast<int>(q), s.x, &ws.contact.candidates[q], &s.probes[q]);
 }
 
-// Explicit integrators take the contact layer semi-implicitly (step.h): a node with a layer
-// stiffness B advances with m (m I + h^2 B)^-1 f instead of f, on its free axes.
-void semi_implicit_contact(const Model& m, Workspace& ws, double h) {
+// Explicit integrators take the contact layer implicitly (step.h): backward Euler on the layer
+// force linearised at x with the proxy held, m (v1 - v) = h (f - B h v1), so a node with a layer
+// stiffness B advances with the force m (m I + h^2 B)^-1 (f - h B v) instead of f, on its free
+// axes. The h B v term is the layer's own backward-Euler damping: without it a node that meets
+// the held proxy keeps its speed into the layer and gives the energy back on the way out.
+void semi_implicit_contact(const Model& m, const State& s, Workspace& ws, double h) {
   for (int q = 0; q < ws.contact.num_nodes; ++q) {
     const int i = ws.contact.nodes[q];
     if (m.fixed[i] == 7) continue;
     const Mat3& B = ws.contact.block[i];
     if (B.squaredNorm() == 0) continue;
     const Vec3& free = m.free_axes[i];
-    const Mat3 A =
-        m.mass[i] * Mat3::Identity() + h * h * (free.asDiagonal() * B * free.asDiagonal());
-    ws.force[i] = m.mass[i] * A.ldlt().solve(ws.force[i]);
+    const Mat3 Bf = free.asDiagonal() * B * free.asDiagonal();
+    const Mat3 A = m.mass[i] * Mat3::Identity() + h * h * Bf;
+    ws.force[i] = m.mass[i] * A.ldlt().solve(ws.force[i] - h * (Bf * s.v[i]));
   }
 }
 
