@@ -452,7 +452,7 @@ int factored_solve(const Model& m, State& s, Workspace& ws) {
 
 }  // namespace
 
-void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p, double* y) {
+void prepare_system_at(const Model& m, State& s, Workspace& ws, double h) {
   const int nn = m.num_nodes();
   const double mfac = 1.0 + h * m.options.mass_damping;
   for (int i = 0; i < nn; ++i) ws.system.mass[i] = m.mass[i] * mfac;
@@ -460,6 +460,10 @@ void system_product(const Model& m, State& s, Workspace& ws, double h, const dou
   ws.system.h2 = h * h;
   system_coefficients(m, ws, h);
   for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
+}
+
+void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p, double* y) {
+  prepare_system_at(m, s, ws, h);
   apply_system(m, ws, p, y);
 }
 

@@ -130,6 +130,9 @@ void integrate_implicit_factored(const Model& m, State& s, Workspace& ws);
 // y = A p, the backward Euler system A = M (1 + h mu) - h^2 (df/dx + df/dv / h) at (s.x, s.v) as
 // the Newton iteration builds it (component-major vectors of 3 num_nodes entries, free axes).
 void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p, double* y);
+// The system's values at (s.x, s.v) for step h without the product: masses, forces with the
+// Jacobian, spring coefficients and the element terms' blocks (what SystemFactor::assemble reads).
+void prepare_system_at(const Model& m, State& s, Workspace& ws, double h);
 // The guard over every node, or over the listed ones; counts what it finds.
 bool state_ok(const Model& m, State& s);
 bool nodes_ok(const Model& m, State& s, const std::vector<int>& nodes);

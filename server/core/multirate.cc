@@ -1,0 +1,249 @@
+#include "core/multirate.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/sparse_system.h"
+#include "core/step.h"
+#include "core/step_detail.h"
+
+namespace conica {
+namespace {
+
+// In-place LU with partial pivoting of the n x n row-major matrix a (leading dimension ld);
+// false when singular.
+bool lu_factor(double* a, int n, int ld, int* pivot) {
+  for (int k = 0; k < n; ++k) {
+    int p = k;
+    double best = std::abs(a[k * ld + k]);
+    for (int r = k + 1; r < n; ++r)
+      if (std::abs(a[r * ld + k]) > best) best = std::abs(a[(p = r) * ld + k]);
+    if (!(best > 0)) return false;
+    pivot[k] = p;
+    if (p != k)
+      for (int c = 0; c < n; ++c) std::swap(a[k * ld + c], a[p * ld + c]);
+    const double inv = 1.0 / a[k * ld + k];
+    for (int r = k + 1; r < n; ++r) {
+      const double l = a[r * ld + k] *= inv;
+      if (l != 0)
+        for (int c = k + 1; c < n; ++c) a[r * ld + c] -= l * a[k * ld + c];
+    }
+  }
+  return true;
+}
+
+void lu_solve(const double* a, int n, int ld, const int* pivot, double* b) {
+  for (int k = 0; k < n; ++k) std::swap(b[k], b[pivot[k]]);
+  for (int r = 1; r < n; ++r) {
+    double s = b[r];
+    for (int c = 0; c < r; ++c) s -= a[r * ld + c] * b[c];
+    b[r] = s;
+  }
+  for (int r = n - 1; r >= 0; --r) {
+    double s = b[r];
+    for (int c = r + 1; c < n; ++c) s -= a[r * ld + c] * b[c];
+    b[r] = s / a[r * ld + r];
+  }
+}
+
+}  // namespace
+
+LocalModel::LocalModel(int cap)
+    : capacity(cap),
+      nodes(cap, -1),
+      x0(cap, Vec3::Zero()),
+      f0(cap, Vec3::Zero()),
+      b0(cap, Mat3::Zero()),
+      w(9 * static_cast<size_t>(cap) * cap, 0.0),
+      f(cap, Vec3::Zero()),
+      dx(cap, Vec3::Zero()),
+      dfdc(cap, Mat3::Zero()),
+      jac(9 * static_cast<size_t>(cap) * cap, 0.0),
+      rhs(3 * static_cast<size_t>(cap), 0.0),
+      g(9 * static_cast<size_t>(cap), 0.0),
+      pivot(4 * static_cast<size_t>(cap), 0) {}
+
+LocalModelBuilder::LocalModelBuilder(const Model& m)
+    : factor_(std::make_unique<SystemFactor>(m)),
+      r_(3 * static_cast<size_t>(m.num_nodes()), 0.0),
+      z_(3 * static_cast<size_t>(m.num_nodes()), 0.0) {
+  near_.reserve(m.num_nodes());
+}
+
+LocalModelBuilder::~LocalModelBuilder() = default;
+
+bool LocalModelBuilder::build(const Model& m, State& s, Workspace& ws, int k, double margin,
+                              LocalModel* lm) {
+  const double h = detail::substep_of(m);
+  const int nn = m.num_nodes();
+  lm->valid = false;
+  lm->num = 0;
+  detail::prepare_system_at(m, s, ws, h);
+  factor_->assemble(m, ws);
+  if (!factor_->factorize()) return false;
+
+  const ProbeState& p = s.probes[k];
+  const Vec3 c = p.center;
+  const double R = probe_radius(m, k, p), reach = R + margin;
+  const double kc = m.probes[k].stiffness;
+  near_.clear();
+  for (int i = 0; i < nn; ++i) {
+    if (m.fixed[i] == 7) continue;
+    const double d2 = (s.x[i] - c).squaredNorm();
+    if (d2 < reach * reach) near_.emplace_back(d2, i);
+  }
+  const int num = std::min<int>(lm->capacity, static_cast<int>(near_.size()));
+  std::partial_sort(near_.begin(), near_.begin() + num, near_.end());
+  lm->num = num;
+  lm->h = h;
+  lm->center0 = c;
+  for (int a = 0; a < num; ++a) {
+    const int i = near_[a].second;
+    lm->nodes[a] = i;
+    lm->x0[a] = s.x[i];
+    Vec3 f, dir;
+    Mat3 dfdc;
+    if (p.active && node_contact(s.x[i], m.normal[i], c, R, kc, &f, &dfdc, &dir)) {
+      lm->f0[a] = f;
+      lm->b0[a] = kc * dir * dir.transpose();  // what the contact stage put in the system
+    } else {
+      lm->f0[a].setZero();
+      lm->b0[a].setZero();
+    }
+  }
+  // W_RR = h^2 A^-1 restricted to the region: one solve per region axis.
+  const int n3 = 3 * num, ld = 3 * lm->capacity;
+  for (int a = 0; a < num; ++a)
+    for (int ca = 0; ca < 3; ++ca) {
+      const int i = lm->nodes[a], col = 3 * a + ca;
+      if (!(m.free_axes[i][ca] > 0)) {
+        for (int row = 0; row < n3; ++row) lm->w[row * ld + col] = 0;
+        continue;
+      }
+      std::fill(r_.begin(), r_.end(), 0.0);
+      r_[ca * nn + i] = 1.0;
+      factor_->solve(r_.data(), z_.data());
+      for (int b = 0; b < num; ++b)
+        for (int cb = 0; cb < 3; ++cb)
+          lm->w[(3 * b + cb) * ld + col] = h * h * z_[cb * nn + lm->nodes[b]];
+    }
+  lm->valid = true;
+  return true;
+}
+
+void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, double radius,
+                    ProbeState* probe, std::vector<Vec3>* x) {
+  constexpr int kMaxNewton = 12;
+  const int num = lm.num, n3 = 3 * num, ld = 3 * lm.capacity;
+  const double R = radius > 0 ? radius : m.probes[k].radius, kc = m.probes[k].stiffness;
+  probe->center = center;
+  probe->active = true;
+  if (radius > 0) probe->radius = radius;
+  for (int a = 0; a < num; ++a) lm.dx[a].setZero();
+  int* act = lm.pivot.data() + 3 * lm.capacity;  // the active nodes (in contact now or at x0)
+  int* piv = lm.pivot.data();
+  int na = 0;
+
+  // f, dfdc at x0 + dx and the active set; R = dx - W [f - f0 + B0 dx] into lm.rhs (only the
+  // active nodes carry a nonzero bracket); returns |R|_inf.
+  auto residual = [&]() {
+    na = 0;
+    for (int a = 0; a < num; ++a) {
+      Vec3 dir;
+      const bool in = node_contact(lm.x0[a] + lm.dx[a], m.normal[lm.nodes[a]], center, R, kc,
+                                   &lm.f[a], &lm.dfdc[a], &dir);
+      if (!in) {
+        lm.f[a].setZero();
+        lm.dfdc[a].setZero();
+      }
+      if (in || lm.f0[a].squaredNorm() > 0 || lm.b0[a].squaredNorm() > 0) act[na++] = a;
+    }
+    double worst = 0;
+    for (int row = 0; row < n3; ++row) {
+      double s = 0;
+      for (int t = 0; t < na; ++t) {
+        const int b = act[t];
+        const Vec3 q = lm.f[b] - lm.f0[b] + lm.b0[b] * lm.dx[b];
+        const double* wr = &lm.w[row * ld + 3 * b];
+        s += wr[0] * q[0] + wr[1] * q[1] + wr[2] * q[2];
+      }
+      lm.rhs[row] = lm.dx[row / 3][row % 3] - s;
+      worst = std::max(worst, std::abs(lm.rhs[row]));
+    }
+    return worst;
+  };
+  // (W Q)_{row, active column}, Q = B0 + dfdc (dfdc = df/dx: the node force depends on x - c).
+  auto wq = [&](int row, int t, int cb) {
+    const int b = act[t];
+    const Mat3 q = lm.b0[b] + lm.dfdc[b];
+    const double* wr = &lm.w[row * ld + 3 * b];
+    return wr[0] * q(0, cb) + wr[1] * q(1, cb) + wr[2] * q(2, cb);
+  };
+  // J = I - W Q has identity columns off the active set: LU of its active block J_AA in jac.
+  auto factor_jacobian = [&]() {
+    const int n = 3 * na;
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < n; ++c)
+        lm.jac[r * ld + c] = (r == c ? 1.0 : 0.0) - wq(3 * act[r / 3] + r % 3, c / 3, c % 3);
+    return lu_factor(lm.jac.data(), n, ld, piv);
+  };
+
+  const double tol = 1e-9 * std::max(R, 1e-6);
+  double res = n3 > 0 ? residual() : 0;
+  int it = 0;
+  double* d = lm.g.data();  // the active block's step (3 na <= 3 capacity)
+  for (; it < kMaxNewton && res > tol && na > 0; ++it) {
+    if (!factor_jacobian()) break;
+    // J d = -R: the active rows by the LU, then each other row d_r = -R_r + (W Q)_{rA} d_A.
+    for (int r = 0; r < 3 * na; ++r) d[r] = -lm.rhs[3 * act[r / 3] + r % 3];
+    lu_solve(lm.jac.data(), 3 * na, ld, piv, d);
+    for (int row = 0; row < n3; ++row) {
+      double s = -lm.rhs[row];
+      for (int c = 0; c < 3 * na; ++c) s += wq(row, c / 3, c % 3) * d[c];
+      lm.rhs[row] = s;  // the step of every row (the active ones reproduce d)
+    }
+    for (int a = 0; a < num; ++a)
+      lm.dx[a] += Vec3(lm.rhs[3 * a], lm.rhs[3 * a + 1], lm.rhs[3 * a + 2]);
+    res = residual();
+  }
+  lm.newton_iterations = it;
+  lm.residual = res;
+
+  probe->force.setZero();
+  probe->stiffness.setZero();
+  probe->contacts = 0;
+  for (int a = 0; a < num; ++a) {
+    probe->force -= lm.f[a];
+    if (lm.f[a].squaredNorm() > 0) ++probe->contacts;
+  }
+  // Stiffness dF/dc = sum_a dfdc_a (I - G_a), G = dx/dc = -J^-1 W S, S the stacked dfdc (the
+  // node force depends on x - c, so df/dc = -dfdc and dR/dc = W S); dfdc is zero off the active
+  // set, so only G_A is needed: J_AA G_A = -(W S)_A.
+  if (na > 0 && probe->contacts > 0 && factor_jacobian()) {
+    const int n = 3 * na;
+    for (int cc = 0; cc < 3; ++cc) {
+      double* col = d + cc * ld;
+      for (int r = 0; r < n; ++r) {
+        const int row = 3 * act[r / 3] + r % 3;
+        double s = 0;
+        for (int t = 0; t < na; ++t) {
+          const int b = act[t];
+          const double* wr = &lm.w[row * ld + 3 * b];
+          s += wr[0] * lm.dfdc[b](0, cc) + wr[1] * lm.dfdc[b](1, cc) + wr[2] * lm.dfdc[b](2, cc);
+        }
+        col[r] = -s;
+      }
+      lu_solve(lm.jac.data(), n, ld, piv, col);
+    }
+    for (int t = 0; t < na; ++t) {
+      Mat3 G;
+      for (int r = 0; r < 3; ++r)
+        for (int cc = 0; cc < 3; ++cc) G(r, cc) = d[cc * ld + 3 * t + r];
+      probe->stiffness += lm.dfdc[act[t]] * (Mat3::Identity() - G);
+    }
+  }
+  if (x)
+    for (int a = 0; a < num; ++a) (*x)[lm.nodes[a]] = lm.x0[a] + lm.dx[a];
+}
+
+}  // namespace conica

@@ -1,0 +1,77 @@
+// Multi-rate haptics: an accurate body steps at its own rate, a 1 kHz tick answers the probe in
+// between with the local compliance of the contact region (the split SOFA's haptics uses).
+//
+// The body (implicit Euler, step h_b, e.g. 20 ms) ends a step at x0 with the probe at c0, in
+// equilibrium with the probe's node forces f0 = f(x0, c0). Linearised about that state, an extra
+// force df on the nodes moves them at the end of the next step by
+//   dx = W df,   W = h_b^2 A^-1,   A = M (1 + h_b mu) + h_b^2 (K + B0)
+// (the implicit system, core/sparse_system.h; B0 the probe's contact Jacobian it holds). Between
+// body steps the probe moves to c, and the haptic tick solves the contact region R (the nodes the
+// probe can reach) for the node displacements dx with
+//   dx = W_RR [ f(x0 + dx, c) - f0 + B0 dx ]                                          (1)
+// by Newton's method (J = I - W (B0 - df/dc), a dense solve of 3 |R| unknowns); the force on the
+// device is -sum f(x0 + dx, c) and its stiffness -dF/dc = sum_i dfdc_i (I - G_i), G = J^-1 W S,
+// S the stacked dfdc_i: the body's compliance softens the device's stiffness (FD-tested).
+// With c = c0, dx = 0 solves (1) exactly: between body steps the force is continuous with the
+// body's own, and moves with the probe as the body would, to first order in the body's response.
+//
+// Built on the body's thread after each body step (build_local_model: one force evaluation, an
+// assembly and a numeric factorisation, which allocates inside CHOLMOD, and 3 |R| solves); solved
+// on the 1 kHz thread (haptic_contact: no allocation, the region's capacity fixed at load).
+// Probes with the node contact law (ContactModel::kNodes) only.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "core/model.h"
+
+namespace conica {
+
+struct Workspace;
+class SystemFactor;
+
+struct LocalModel {
+  explicit LocalModel(int capacity = 48);
+  int capacity = 0;
+  int num = 0;                  // region nodes in use
+  bool valid = false;           // built from a factored system
+  double h = 0;                 // s, the body step the compliance is for
+  Vec3 center0 = Vec3::Zero();  // m, the probe where the body step ended
+  std::vector<int> nodes;       // (capacity) the region
+  std::vector<Vec3> x0, f0;     // (capacity) m, N: positions and probe forces at the body state
+  std::vector<Mat3> b0;         // (capacity) N/m: the contact Jacobian the system held
+  std::vector<double> w;        // (9 capacity^2) m/N: W_RR, row-major 3 capacity x 3 capacity
+  // Haptic scratch (1 kHz thread).
+  std::vector<Vec3> f, dx;
+  std::vector<Mat3> dfdc;
+  std::vector<double> jac, rhs, g;
+  std::vector<int> pivot;  // (4 capacity) LU pivots, then the active nodes
+  int newton_iterations = 0;  // of the last haptic_contact
+  double residual = 0;        // m, its final |R(dx)|
+};
+
+// The body's side: owns the factor W comes from (allocates: at load).
+class LocalModelBuilder {
+ public:
+  explicit LocalModelBuilder(const Model& m);
+  ~LocalModelBuilder();
+  // After a body step at h = m's substep: the implicit system at state s (forces with the
+  // Jacobian, coefficients, element terms), factored, and W for the region of probe k (the nodes
+  // within reach: the probe radius plus `margin`, the closest first if more than the capacity).
+  // False when the system is not positive definite (out->valid false).
+  bool build(const Model& m, State& s, Workspace& ws, int k, double margin, LocalModel* out);
+
+ private:
+  std::unique_ptr<SystemFactor> factor_;
+  std::vector<double> r_, z_;
+  std::vector<std::pair<double, int>> near_;
+};
+
+// The 1 kHz side: probe k of radius R at `center` against the local model; fills probe's force,
+// stiffness, contacts and the region's displaced positions x0 + dx into x (the other nodes keep
+// theirs). Allocates nothing.
+void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, double radius,
+                    ProbeState* probe, std::vector<Vec3>* x);
+
+}  // namespace conica

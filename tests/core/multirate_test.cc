@@ -1,0 +1,151 @@
+// The multi-rate haptic model (core/multirate.h): the local compliance a slow body step leaves
+// answers a moved probe as a full, converged body step at the new pose would (the independent
+// value: that step), its stiffness is the derivative of its force (central differences), and it
+// is exact where the body step ended.
+#include "core/multirate.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "core/body.h"
+#include "core/step.h"
+#include "lattice_meshes.h"
+
+namespace conica {
+namespace {
+
+using testing_meshes::Tetrahedralised;
+
+constexpr double kBodyStep = 0.02;  // s: the body at 50 Hz
+constexpr double kRadius = 0.004;   // m
+const Vec3 kTop(0.01, 0.01, 0.015);
+
+// A 20 x 20 x 15 mm block of the EF30 card with volume and shear terms, tetrahedra (as the
+// livers) or hexahedra, on a fixed base, probed with the node law at the stiffness a 1 kHz body
+// would get (set: the default follows the lightest node); the body steps at 50 Hz with a converged Newton iteration.
+Model Block(bool tets) {
+  BodySpec b;
+  b.mesh = make_box_lattice(Vec3(0.02, 0.02, 0.015), {4, 4, 3});
+  if (tets) b.mesh = Tetrahedralised(b.mesh);
+  b.density = 1070;
+  SpringCard c;
+  c.conical = ConicalCard{
+      2.0638952894602549e9, 1.6662609498394193e-3, 4.8853058085019819e-3, 8e-3, 10e-3, 3};
+  c.stiffness_cap = 1000;
+  b.groups.push_back({"silicone", c, kAllFamilies, {}, Vec3::Zero(), 10});
+  b.bulk_modulus = 137052.6;
+  b.spread_modulus = tets ? 0 : 137052.6;
+  b.shear_modulus = 15613.6;
+  FixedSelector base;
+  base.kind = FixedSelector::Kind::kPlane;
+  b.fixed.push_back(base);
+  b.probes.push_back(ProbeSpec{kRadius, 300});  // N/m per node: stiffer than the tissue locally
+  b.options.integrator = Integrator::kImplicitEuler;
+  b.options.mass_damping = 20;
+  b.options.newton_iterations = 8;
+  b.options.cg_iterations = 400;
+  b.options.cg_tolerance = 1e-12;
+  Model m;
+  EXPECT_EQ(build_model(b, &m), "");
+  m.options.dt = kBodyStep;  // the contact stiffness stays the one chosen at 1 kHz
+  return m;
+}
+
+Vec3 Pose(double depth, double slide = 0) {
+  return kTop + Vec3(slide, 0.3 * slide, kRadius - depth);
+}
+
+// Pressed to `depth` at the block's centre over 20 body steps, then held until it rests.
+State Pressed(const Model& m, Workspace& ws, double depth) {
+  State s = make_state(m);
+  for (int k = 0; k < 40; ++k) {
+    set_probe(s, 0, Pose(depth * std::min(1.0, (k + 1) / 20.0)));
+    step(m, s, ws);
+  }
+  return s;
+}
+
+// The probe's force after one converged body step with the probe at c (the reference).
+Vec3 FullStep(const Model& m, const State& from, const Vec3& c) {
+  State s = from;
+  Workspace ws(m);
+  set_probe(s, 0, c);
+  step(m, s, ws);
+  ProbeState p = s.probes[0];
+  probe_contact(m, s.x, 0, c, kRadius, &p);
+  return p.force;
+}
+
+class MultirateTest : public ::testing::TestWithParam<bool> {};
+
+TEST_P(MultirateTest, MovedProbeFeelsWhatAFullBodyStepGives) {
+  const Model m = Block(GetParam());
+  Workspace ws(m);
+  State s = Pressed(m, ws, 2e-3);
+  LocalModelBuilder builder(m);
+  LocalModel lm;
+  ASSERT_TRUE(builder.build(m, s, ws, 0, 0.5 * kRadius, &lm));
+  ASSERT_GT(lm.num, 4);
+  ASSERT_LT(lm.num, lm.capacity);
+
+  // Where the body step ended, the local model is the body: dx = 0, the body's force.
+  ProbeState at0;
+  std::vector<Vec3> x = s.x;
+  haptic_contact(m, lm, 0, Pose(2e-3), kRadius, &at0, &x);
+  ProbeState body = s.probes[0];
+  probe_contact(m, s.x, 0, Pose(2e-3), kRadius, &body);
+  EXPECT_LT((at0.force - body.force).norm(), 1e-9 * body.force.norm());
+  EXPECT_GT(body.force.z(), 0.05);
+
+  // Moved between body steps: deeper, sideways, shallower.
+  const Vec3 moves[] = {Pose(2.4e-3), Pose(2e-3, 0.6e-3), Pose(1.6e-3, -0.4e-3)};
+  for (const Vec3& c : moves) {
+    const Vec3 ref = FullStep(m, s, c);
+    ProbeState hp;
+    haptic_contact(m, lm, 0, c, kRadius, &hp, &x);
+    ProbeState frozen = s.probes[0];  // the same pose against the body's last positions
+    probe_contact(m, s.x, 0, c, kRadius, &frozen);
+    const double err = (hp.force - ref).norm() / ref.norm();
+    const double frozen_err = (frozen.force - ref).norm() / ref.norm();
+    std::printf("probe at (%.2f %.2f %.2f) mm: full step %.4f N, haptic error %.3f %%, frozen %.1f %%, "
+                "%d Newton\n", 1e3 * c.x(), 1e3 * c.y(), 1e3 * c.z(), ref.norm(), 100 * err,
+                100 * frozen_err, lm.newton_iterations);
+    EXPECT_LT(err, 0.02) << "haptic " << hp.force.transpose() << " full step " << ref.transpose();
+    EXPECT_GT(frozen_err, 5 * err) << "frozen " << frozen.force.transpose();
+    EXPECT_LT(lm.residual, 1e-9 * kRadius);
+  }
+}
+
+TEST_P(MultirateTest, StiffnessIsTheForceDerivative) {
+  const Model m = Block(GetParam());
+  Workspace ws(m);
+  State s = Pressed(m, ws, 2e-3);
+  LocalModelBuilder builder(m);
+  LocalModel lm;
+  ASSERT_TRUE(builder.build(m, s, ws, 0, 0.5 * kRadius, &lm));
+  const Vec3 c = Pose(2.2e-3, 0.3e-3);
+  ProbeState p;
+  haptic_contact(m, lm, 0, c, kRadius, &p, nullptr);
+  const double e = 1e-7;
+  Mat3 fd;
+  for (int a = 0; a < 3; ++a) {
+    ProbeState plus, minus;
+    haptic_contact(m, lm, 0, c + e * Vec3::Unit(a), kRadius, &plus, nullptr);
+    haptic_contact(m, lm, 0, c - e * Vec3::Unit(a), kRadius, &minus, nullptr);
+    fd.col(a) = (plus.force - minus.force) / (2 * e);
+  }
+  EXPECT_LT((p.stiffness - fd).norm(), 2e-3 * fd.norm()) << p.stiffness << "\n\n" << fd;
+  // The body's compliance softens the device's stiffness against the nodes held.
+  ProbeState held = s.probes[0];
+  probe_contact(m, s.x, 0, c, kRadius, &held);
+  EXPECT_LT(std::abs(p.stiffness(2, 2)), 0.8 * std::abs(held.stiffness(2, 2)));
+}
+
+INSTANTIATE_TEST_SUITE_P(TetsAndHexes, MultirateTest, ::testing::Bool(),
+                         [](const auto& info) { return info.param ? "tets" : "hexes"; });
+
+}  // namespace
+}  // namespace conica
