@@ -104,7 +104,7 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                     const std::vector<int>* nodes = nullptr);
 // The proxy stage: every surface-contact probe's proxy toward its device target.
 void update_proxies(const Model& m, State& s, Workspace& ws);
-// Explicit integrators: nodes in contact advance with m (m I + h^2 B)^-1 (f - h B v).
+// Explicit integrators: nodes in contact advance with m (m I + h^2 B)^-1 (f - h B (v - v_proxy)).
 void semi_implicit_contact(const Model& m, const State& s, Workspace& ws, double h);
 
 // Active region (region.cc).
