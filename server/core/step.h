@@ -38,12 +38,12 @@
 // the nodes held (the proxy stage); the body then steps with the tools held at their proxies, the
 // contact layer's forces on the surface triangles' nodes in its forces. Explicit integrators take
 // the contact layer by linearised backward Euler: a node in contact advances with the force
-// m (m I + h^2 B)^-1 (f - h B (v - v_p)), v_p the proxy's velocity, B its lumped layer stiffness,
-// which bounds the layer's stiffness from above, so the stiff layer never limits the step (h^2 B /
-// m of a touched node is often past the explicit bound of 4) and a node that meets the held proxy
-// does not keep its speed into the layer (the equilibrium is the same: f = 0, v = 0 there). Rigid
-// planes {n.x
-// >= offset}: f_node = k_p (offset - n.x) n for nodes behind the plane.
+// m (m I + h^2 B)^-1 (f - h B (v - v_p)), v_p the proxy's velocity over its last update, B the
+// node's lumped layer stiffness, which bounds the layer's stiffness from above, so the stiff layer
+// never limits the step (h^2 B / m of a touched node is often past the explicit bound of 4) and a
+// node that meets the proxy does not keep its speed into the layer (the equilibrium is the same:
+// f = 0, v = v_p = 0 there). Rigid planes {n.x >= offset}: f_node = k_p (offset - n.x) n for nodes
+// behind the plane.
 //
 // Active region (options.active_region, explicit integrators): a probe pressing with force P moves
 // the surface of an elastic half-space by about u(r) = P (1 - nu^2) / (pi E r) at distance r
