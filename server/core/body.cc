@@ -490,6 +490,15 @@ std::string build_model(const BodySpec& spec, Model* out) {
   // Probes: the contact layer and the coupling default to the tissue's contact modulus
   // (core/contact.h), not to the step.
   m.contact_modulus = contact_modulus(m);
+  // Multi-rate serving: the node penalty from the tissue, not the step (the body's step is not
+  // the tick's): ten times a node's share of the tissue, E* times the median spring length, so
+  // that the penalty's give is about a tenth of the tissue's under the probe.
+  auto multirate_node_stiffness = [&m] {
+    std::vector<double> l(m.rest_length);
+    if (l.empty()) return 1.0;
+    std::nth_element(l.begin(), l.begin() + l.size() / 2, l.end());
+    return 10 * m.contact_modulus * l[l.size() / 2];
+  };
   for (size_t k = 0; k < m.probes.size(); ++k) {
     ProbeSpec& p = m.probes[k];
     const std::string which = "probe " + std::to_string(k) + ": ";
@@ -502,7 +511,10 @@ std::string build_model(const BodySpec& spec, Model* out) {
       return which + "friction must be >= 0 (a Coulomb coefficient)";
     if (!(p.axis.norm() > 0) || !p.axis.allFinite()) return which + "axis must be nonzero";
     p.axis.normalize();
-    if (p.contact == ContactModel::kNodes && p.stiffness <= 0) p.stiffness = k_default;
+    if (m.options.body_rate_hz > 0 && p.contact != ContactModel::kNodes)
+      return which + "multi-rate serving (solver body_rate_hz) needs contact NODES";
+    if (p.contact == ContactModel::kNodes && p.stiffness <= 0)
+      p.stiffness = m.options.body_rate_hz > 0 ? multirate_node_stiffness() : k_default;
   }
   for (auto& p : m.planes) {
     if (!(p.normal.norm() > 0)) return "plane normal must be nonzero";

@@ -79,7 +79,12 @@ struct SolverOptions {
   int refactor_every = 0;       // kFactorCG: steps between factorisations (0: only on demand)
   int refactor_iterations = 4;  // kFactorCG: a solve that takes more CG iterations asks for a
                                 // new factor
-  double mass_damping = 0;      // 1/s: Rayleigh mass-proportional damping on all nodes
+  // Multi-rate serving (the server's loop, loop/body_worker.h; core/multirate.h): the body steps
+  // at body_rate_hz on a thread of its own and each tick answers the probes from the local
+  // compliance of its last step. 0: the body steps every tick. Implicit Euler, node contact.
+  double body_rate_hz = 0;  // Hz
+  double body_reach = 0;    // m, the local model's region beyond the probe radius (0: half of it)
+  double mass_damping = 0;  // 1/s: Rayleigh mass-proportional damping on all nodes
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
   double min_length_fraction = 0.05;                  // hard stop: no spring shorter than this x l0
   bool hard_stop = true;                              // off only to show what happens without it

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/sparse_system.h"
 #include "core/step.h"
@@ -64,9 +65,7 @@ LocalModel::LocalModel(int cap)
       pivot(4 * static_cast<size_t>(cap), 0) {}
 
 LocalModelBuilder::LocalModelBuilder(const Model& m)
-    : factor_(std::make_unique<SystemFactor>(m)),
-      r_(3 * static_cast<size_t>(m.num_nodes()), 0.0),
-      z_(3 * static_cast<size_t>(m.num_nodes()), 0.0) {
+    : factor_(std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)) {
   near_.reserve(m.num_nodes());
 }
 
@@ -111,24 +110,39 @@ bool LocalModelBuilder::build(const Model& m, State& s, Workspace& ws, int k, do
       lm->b0[a].setZero();
     }
   }
-  // W_RR = h^2 A^-1 restricted to the region: one solve per region axis.
-  const int n3 = 3 * num, ld = 3 * lm->capacity;
-  for (int a = 0; a < num; ++a)
-    for (int ca = 0; ca < 3; ++ca) {
-      const int i = lm->nodes[a], col = 3 * a + ca;
-      if (!(m.free_axes[i][ca] > 0)) {
-        for (int row = 0; row < n3; ++row) lm->w[row * ld + col] = 0;
-        continue;
-      }
-      std::fill(r_.begin(), r_.end(), 0.0);
-      r_[ca * nn + i] = 1.0;
-      factor_->solve(r_.data(), z_.data());
-      for (int b = 0; b < num; ++b)
-        for (int cb = 0; cb < 3; ++cb)
-          lm->w[(3 * b + cb) * ld + col] = h * h * z_[cb * nn + lm->nodes[b]];
-    }
+  // W_RR = h^2 A^-1 restricted to the region: the region's unit vectors solved at once (their
+  // solves on a fixed axis give zero).
+  const int n3 = 3 * num, ld = 3 * lm->capacity, n = 3 * nn;
+  r_.assign(static_cast<size_t>(n) * std::max(n3, 1), 0.0);  // grows to the largest region once
+  z_.resize(r_.size());
+  for (int col = 0; col < n3; ++col)
+    r_[static_cast<size_t>(col) * n + (col % 3) * nn + lm->nodes[col / 3]] = 1.0;
+  if (n3 > 0) factor_->solve_many(r_.data(), z_.data(), n3);
+  for (int col = 0; col < n3; ++col)
+    for (int b = 0; b < num; ++b)
+      for (int cb = 0; cb < 3; ++cb)
+        lm->w[(3 * b + cb) * ld + col] =
+            h * h * z_[static_cast<size_t>(col) * n + cb * nn + lm->nodes[b]];
   lm->valid = true;
+  // The fresh factor is the best preconditioner the body's next step can have (kFactorCG): hand
+  // it over and keep the one it had as the next scratch.
+  if (ws.factor) {
+    std::swap(ws.factor->current, factor_);
+    ws.factor->wanted = false;
+    ws.factor->age = 0;
+    if (factor_->kind() != SystemFactor::Kind::kSupernodal)  // the first hand-over only
+      factor_ = std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal);
+  }
   return true;
+}
+
+void prime_body_model(Model* body) {
+  body->options.refactor_every = 0;
+  body->options.refactor_iterations = std::numeric_limits<int>::max();
+}
+
+void prime_workspace(Workspace& ws) {
+  if (ws.factor) ws.factor->wanted = false;
 }
 
 void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, double radius,

@@ -46,7 +46,7 @@ struct LocalModel {
   std::vector<Vec3> f, dx;
   std::vector<Mat3> dfdc;
   std::vector<double> jac, rhs, g;
-  std::vector<int> pivot;  // (4 capacity) LU pivots, then the active nodes
+  std::vector<int> pivot;     // (4 capacity) LU pivots, then the active nodes
   int newton_iterations = 0;  // of the last haptic_contact
   double residual = 0;        // m, its final |R(dx)|
 };
@@ -59,7 +59,8 @@ class LocalModelBuilder {
   // After a body step at h = m's substep: the implicit system at state s (forces with the
   // Jacobian, coefficients, element terms), factored, and W for the region of probe k (the nodes
   // within reach: the probe radius plus `margin`, the closest first if more than the capacity).
-  // False when the system is not positive definite (out->valid false).
+  // False when the system is not positive definite (out->valid false). With kFactorCG the fresh
+  // factor becomes ws's current one (the next step's preconditioner).
   bool build(const Model& m, State& s, Workspace& ws, int k, double margin, LocalModel* out);
 
  private:
@@ -67,6 +68,12 @@ class LocalModelBuilder {
   std::vector<double> r_, z_;
   std::vector<std::pair<double, int>> near_;
 };
+
+// A multi-rate body's options and workspace: with kFactorCG its step never factors a system of
+// its own (the builder hands it a fresh supernodal factor after every step; until the first, CG
+// is block-Jacobi preconditioned).
+void prime_body_model(Model* body);
+void prime_workspace(Workspace& ws);
 
 // The 1 kHz side: probe k of radius R at `center` against the local model; fills probe's force,
 // stiffness, contacts and the region's displaced positions x0 + dx into x (the other nodes keep

@@ -19,13 +19,14 @@ struct SystemFactor::Cholmod {
   cholmod_dense* X = nullptr;
   cholmod_dense* Y = nullptr;
   cholmod_dense* E = nullptr;
+  cholmod_dense *Bk = nullptr, *Xk = nullptr, *Yk = nullptr, *Ek = nullptr;  // solve_many
   Cholmod() {
     cholmod_start(&c);
     c.print = 0;  // the core prints nothing; failures are reported through the return value
     c.error_handler = nullptr;
   }
   ~Cholmod() {
-    for (cholmod_dense** d : {&B, &X, &Y, &E})
+    for (cholmod_dense** d : {&B, &X, &Y, &E, &Bk, &Xk, &Yk, &Ek})
       if (*d) cholmod_free_dense(d, &c);
     if (L) cholmod_free_factor(&L, &c);
     if (A) cholmod_free_sparse(&A, &c);
@@ -33,7 +34,8 @@ struct SystemFactor::Cholmod {
   }
 };
 
-SystemFactor::SystemFactor(const Model& m) : nn_(m.num_nodes()), c_(std::make_unique<Cholmod>()) {
+SystemFactor::SystemFactor(const Model& m, Kind kind)
+    : nn_(m.num_nodes()), kind_(kind), c_(std::make_unique<Cholmod>()) {
   const int nn = nn_, ns = m.num_springs();
   // Block pattern: for every block column J the block rows I <= J that can be nonzero.
   std::vector<std::vector<int>> cols(nn);
@@ -105,9 +107,9 @@ SystemFactor::SystemFactor(const Model& m) : nn_(m.num_nodes()), c_(std::make_un
   std::copy(rowi.begin(), rowi.end(), ri);
   auto* x = static_cast<double*>(c_->A->x);
   for (size_t k = 0; k < src_.size(); ++k) x[k] = src_[k] == -1 ? 1.0 : 0.0;
-  // Simplicial: CG pays a solve per iteration and the factorisation runs off the step; on the
-  // bodies measured (docs/performance.md) the simplicial solve is the faster one.
-  cc.supernodal = CHOLMOD_SIMPLICIAL;
+  // Simplicial by default: CG pays a solve per iteration and the factorisation runs off the step;
+  // on the bodies measured (docs/performance.md) the simplicial solve is the faster one.
+  cc.supernodal = kind == Kind::kSupernodal ? CHOLMOD_SUPERNODAL : CHOLMOD_SIMPLICIAL;
   c_->L = cholmod_analyze(c_->A, &cc);
   c_->B = cholmod_zeros(n, 1, CHOLMOD_REAL, &cc);
   work_.assign(n, 0.0);
@@ -182,14 +184,43 @@ bool SystemFactor::factorize() {
   cholmod_common& cc = c_->c;
   factored_ =
       cholmod_factorize(c_->A, c_->L, &cc) && cc.status == CHOLMOD_OK && c_->L->minor == c_->L->n;
-  // solve() reads a simplicial LDL^T factor (the analysis asked for one).
-  factored_ = factored_ && !c_->L->is_super && !c_->L->is_ll;
+  // solve() reads a simplicial LDL^T factor in place (the analysis asked for one), or solves
+  // with a supernodal one through CHOLMOD.
+  factored_ = factored_ && (c_->L->is_super || !c_->L->is_ll);
   return factored_;
 }
+
+namespace {
+// x = A^-1 b by CHOLMOD's supernodal solve, k component-major right-hand sides; *B, *X, *Y, *E
+// are kept between calls (reallocated when k changes).
+void supernodal_solve(cholmod_factor* L, cholmod_common* cc, cholmod_dense** B, cholmod_dense** X,
+                      cholmod_dense** Y, cholmod_dense** E, const double* free, int nn,
+                      const double* r, double* z, int k) {
+  const int n = 3 * nn;
+  if (!*B || static_cast<int>((*B)->ncol) != k) {
+    if (*B) cholmod_free_dense(B, cc);
+    *B = cholmod_zeros(n, k, CHOLMOD_REAL, cc);
+  }
+  auto* b = static_cast<double*>((*B)->x);
+  for (int q = 0; q < k; ++q)
+    for (int i = 0; i < nn; ++i)
+      for (int c = 0; c < 3; ++c) b[q * n + 3 * i + c] = r[q * n + c * nn + i] * free[c * nn + i];
+  cholmod_solve2(CHOLMOD_A, L, *B, nullptr, X, nullptr, Y, E, cc);
+  const auto* x = static_cast<const double*>((*X)->x);
+  const int ld = static_cast<int>((*X)->d);
+  for (int q = 0; q < k; ++q)
+    for (int i = 0; i < nn; ++i)
+      for (int c = 0; c < 3; ++c) z[q * n + c * nn + i] = x[q * ld + 3 * i + c] * free[c * nn + i];
+}
+}  // namespace
 
 // z = P^T L^-T D^-1 L^-1 P r with the simplicial LDL^T factor read in place (CHOLMOD's layout:
 // column j's first entry is D(j), the unit diagonal of L is not stored): no allocation.
 void SystemFactor::solve(const double* r, double* z) {
+  if (c_->L->is_super) {
+    supernodal_solve(c_->L, &c_->c, &c_->B, &c_->X, &c_->Y, &c_->E, free_.data(), nn_, r, z, 1);
+    return;
+  }
   const int nn = nn_, n = 3 * nn;
   const cholmod_factor* L = c_->L;
   const auto* perm = static_cast<const int*>(L->Perm);
@@ -216,6 +247,15 @@ void SystemFactor::solve(const double* r, double* z) {
   for (int k = 0; k < n; ++k) b[perm[k]] = x[k];
   for (int i = 0; i < nn; ++i)
     for (int c = 0; c < 3; ++c) z[c * nn + i] = b[3 * i + c] * f[c * nn + i];
+}
+
+void SystemFactor::solve_many(const double* r, double* z, int k) {
+  const int n = 3 * nn_;
+  if (!c_->L->is_super) {
+    for (int q = 0; q < k; ++q) solve(r + q * n, z + q * n);
+    return;
+  }
+  supernodal_solve(c_->L, &c_->c, &c_->Bk, &c_->Xk, &c_->Yk, &c_->Ek, free_.data(), nn_, r, z, k);
 }
 
 void SystemFactor::multiply(const double* p, double* y) const {

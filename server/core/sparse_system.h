@@ -35,7 +35,12 @@ struct Workspace;
 
 class SystemFactor {
  public:
-  explicit SystemFactor(const Model& m);  // the pattern and the symbolic analysis (allocates)
+  // Simplicial LDL^T: solve() reads the factor in place and allocates nothing (the 1 kHz step).
+  // Supernodal LL^T (BLAS): a much faster numeric factorisation on the larger bodies; its solves
+  // go through cholmod_solve2, which may allocate (off the 1 kHz thread: the multi-rate body's).
+  enum class Kind { kSimplicial, kSupernodal };
+  // The pattern and the symbolic analysis (allocates).
+  explicit SystemFactor(const Model& m, Kind kind = Kind::kSimplicial);
   ~SystemFactor();
   SystemFactor(const SystemFactor&) = delete;
   SystemFactor& operator=(const SystemFactor&) = delete;
@@ -49,6 +54,9 @@ class SystemFactor {
   bool factored() const { return factored_; }
   // z = A_f^-1 r, component-major vectors of 3 n entries; z is zero on fixed axes.
   void solve(const double* r, double* z);
+  // The same for k right-hand sides at once (r and z: k such vectors one after the other), in
+  // one pass of the supernodal solve (allocates at a new k).
+  void solve_many(const double* r, double* z, int k);
   // y = A_f p with the assembled values (component-major), for tests.
   void multiply(const double* p, double* y) const;
 
@@ -56,10 +64,12 @@ class SystemFactor {
   std::int64_t nonzeros() const;         // upper triangle of A_f
   std::int64_t factor_nonzeros() const;  // of the factor L
   bool supernodal() const;
+  Kind kind() const { return kind_; }
 
  private:
   struct Cholmod;  // CHOLMOD's handles, kept out of this header
   int nn_ = 0;
+  Kind kind_ = Kind::kSimplicial;
   std::vector<int> spring_blocks_;   // (3 num_springs): blocks (i,i), (j,j), (min,max)
   std::vector<int> element_blocks_;  // per element (tetrahedra, then hexahedra) N x N block
                                      // ids of its node pairs (a, b), -1 where node a > node b

@@ -421,6 +421,13 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   if (s.has_refactor_iterations()) o.refactor_iterations = s.refactor_iterations();
   if (o.refactor_every < 0 || o.refactor_iterations < 0)
     return Error{swhere + "refactor_every and refactor_iterations must be >= 0"};
+  o.body_rate_hz = s.body_rate_hz();
+  o.body_reach = s.body_reach();
+  if (!(o.body_rate_hz >= 0) || o.body_rate_hz > rate || !(o.body_reach >= 0) ||
+      !std::isfinite(o.body_reach))
+    return Error{swhere + "body_rate_hz must be in [0, rate_hz] and body_reach >= 0 (m)"};
+  if (o.body_rate_hz > 0 && o.integrator != Integrator::kImplicitEuler)
+    return Error{swhere + "body_rate_hz (multi-rate serving) needs integrator IMPLICIT_EULER"};
   if (s.has_min_length_fraction()) o.min_length_fraction = s.min_length_fraction();
   if (s.has_max_speed()) o.max_speed = s.max_speed();
   o.mass_damping = s.mass_damping();

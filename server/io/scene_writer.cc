@@ -118,6 +118,8 @@ void set_solver(const SolverOptions& o, v1::Solver* out) {
     out->set_refactor_every(o.refactor_every);
     out->set_refactor_iterations(o.refactor_iterations);
   }
+  out->set_body_rate_hz(o.body_rate_hz);
+  out->set_body_reach(o.body_reach);
   out->set_mass_damping(o.mass_damping);
   if (o.gravity.norm() > 0) set(o.gravity, out->mutable_gravity());
   out->set_min_length_fraction(o.min_length_fraction);

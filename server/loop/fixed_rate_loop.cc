@@ -75,7 +75,12 @@ bool FixedRateLoop::tick() {
     handle(in_);  // input: whatever arrived during the last stretch
   const TimeNs t_in = clock_->now_ns();
   Scene& s = *scene_;
-  if (!paused_) step(*s.model, s.state, *s.workspace);
+  if (!paused_) {
+    if (s.body_worker)
+      s.body_worker->tick(*s.model, s.state);  // multi-rate: the body steps on its own thread
+    else
+      step(*s.model, s.state, *s.workspace);
+  }
   const TimeNs t_step = clock_->now_ns();
   ++stats_.ticks;
   StateFrame frame{s.model.get(), &s.state, &stats_, false};
@@ -147,7 +152,10 @@ void FixedRateLoop::answer_probe(const Route& route, const ProbeUpdate& u) {
   ProbeState& ps = s.state.probes[u.probe_id];
   if (u.radius > 0) ps.radius = u.radius;
   set_probe(s.state, u.probe_id, u.position, true);
-  opt_.contact(*s.model, s.state, u.probe_id, u.position, ps.radius, &ps);
+  if (s.body_worker)
+    s.body_worker->contact(*s.model, s.state, u.probe_id, u.position, ps.radius, &ps);
+  else
+    opt_.contact(*s.model, s.state, u.probe_id, u.position, ps.radius, &ps);
   ForceReply reply;
   reply.update = u;
   reply.probe = ps;

@@ -15,6 +15,7 @@
 #include "core/body.h"
 #include "core/model.h"
 #include "core/step.h"
+#include "loop/body_worker.h"
 #include "loop/factor_worker.h"
 #include "loop/messages.h"
 
@@ -31,11 +32,15 @@ struct Scene {
   State state;                   // the live state (at rest when prepared)
   std::unique_ptr<Workspace> workspace;
   ProbeLimits limits;  // the body's box grown by the margin
-  double step_us = 0;  // median step cost at rest, us
+  double step_us = 0;  // median step cost at rest, us (multi-rate: the body's step and local
+                       // models, against the body's period)
   std::vector<Note> notes;
   // Renews the workspace's sparse factor (kFactorCG scenes), declared last: stopped before the
   // workspace goes.
   std::unique_ptr<FactorWorker> factor_worker;
+  // Steps the body on a thread of its own (multi-rate serving, options.body_rate_hz > 0); the
+  // loop's tick then calls body_worker->tick instead of step.
+  std::unique_ptr<BodyWorker> body_worker;
 };
 
 struct PrepareOptions {

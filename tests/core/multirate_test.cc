@@ -25,7 +25,8 @@ const Vec3 kTop(0.01, 0.01, 0.015);
 
 // A 20 x 20 x 15 mm block of the EF30 card with volume and shear terms, tetrahedra (as the
 // livers) or hexahedra, on a fixed base, probed with the node law at the stiffness a 1 kHz body
-// would get (set: the default follows the lightest node); the body steps at 50 Hz with a converged Newton iteration.
+// would get (set: the default follows the lightest node); the body steps at 50 Hz with a converged
+// Newton iteration.
 Model Block(bool tets) {
   BodySpec b;
   b.mesh = make_box_lattice(Vec3(0.02, 0.02, 0.015), {4, 4, 3});
@@ -110,9 +111,11 @@ TEST_P(MultirateTest, MovedProbeFeelsWhatAFullBodyStepGives) {
     probe_contact(m, s.x, 0, c, kRadius, &frozen);
     const double err = (hp.force - ref).norm() / ref.norm();
     const double frozen_err = (frozen.force - ref).norm() / ref.norm();
-    std::printf("probe at (%.2f %.2f %.2f) mm: full step %.4f N, haptic error %.3f %%, frozen %.1f %%, "
-                "%d Newton\n", 1e3 * c.x(), 1e3 * c.y(), 1e3 * c.z(), ref.norm(), 100 * err,
-                100 * frozen_err, lm.newton_iterations);
+    std::printf(
+        "probe at (%.2f %.2f %.2f) mm: full step %.4f N, haptic error %.3f %%, frozen %.1f %%, "
+        "%d Newton\n",
+        1e3 * c.x(), 1e3 * c.y(), 1e3 * c.z(), ref.norm(), 100 * err, 100 * frozen_err,
+        lm.newton_iterations);
     EXPECT_LT(err, 0.02) << "haptic " << hp.force.transpose() << " full step " << ref.transpose();
     EXPECT_GT(frozen_err, 5 * err) << "frozen " << frozen.force.transpose();
     EXPECT_LT(lm.residual, 1e-9 * kRadius);

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "core/body.h"
 #include "io/scene_writer.h"
 
 namespace conica::io {
@@ -243,6 +244,40 @@ TEST(SceneTest, ActiveRegionIsReadAndCheckedInTheSolver) {
   const std::string e = ErrorOf(vol);
   EXPECT_NE(e.find("s.pbtxt:7:1: solver.active_region: not with bulk_modulus"), std::string::npos)
       << e;
+}
+
+TEST(SceneTest, MultiRateServingIsReadAndChecked) {
+  auto with = [](const std::string& solver) {
+    return std::string(kGood) + "probe { radius: 0.004 }\nsolver { " + solver + " }\n";
+  };
+  auto ok = parse_scene(with("integrator: IMPLICIT_EULER body_rate_hz: 50 body_reach: 0.002"),
+                        "s.pbtxt", kConfigs);
+  ASSERT_TRUE(ok) << ok.error();
+  EXPECT_EQ(ok.value().spec.options.body_rate_hz, 50);
+  EXPECT_EQ(ok.value().spec.options.body_reach, 0.002);
+  const std::pair<const char*, const char*> bad[] = {
+      {"body_rate_hz: 50", "needs integrator IMPLICIT_EULER"},
+      {"integrator: IMPLICIT_EULER body_rate_hz: 2000", "body_rate_hz must be in [0, rate_hz]"},
+      {"integrator: IMPLICIT_EULER body_rate_hz: -1", "body_rate_hz must be in [0, rate_hz]"},
+      {"integrator: IMPLICIT_EULER body_rate_hz: nan", "body_rate_hz must be in [0, rate_hz]"},
+      {"integrator: IMPLICIT_EULER body_reach: -1e-3", "body_reach >= 0"},
+  };
+  for (const auto& [solver, why] : bad) {
+    const std::string e = ErrorOf(with(solver));
+    EXPECT_NE(e.find("s.pbtxt:8:1: solver: "), std::string::npos) << solver << ": " << e;
+    EXPECT_NE(e.find(why), std::string::npos) << solver << ": " << e;
+  }
+  // The local model is the node law's: a surface-contact probe is refused.
+  auto surface = parse_scene(std::string(kGood) +
+                                 "probe { radius: 0.004 contact: SURFACE }\n"
+                                 "solver { integrator: IMPLICIT_EULER body_rate_hz: 50 }\n",
+                             "s.pbtxt", kConfigs);
+  const std::string e = surface ? [&] {
+    Model m;
+    return build_model(surface.value().spec, &m);
+  }()
+                                 : surface.error();
+  EXPECT_NE(e.find("needs contact NODES"), std::string::npos) << e;
 }
 
 // Every field of two scenes, exactly (the writer prints numbers that read back bit for bit).

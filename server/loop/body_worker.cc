@@ -1,0 +1,135 @@
+#include "loop/body_worker.h"
+
+#include <pthread.h>
+#include <sched.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace conica::loop {
+namespace {
+
+Model body_model(const Model& served, int every) {
+  Model b = served;
+  b.options.dt = served.options.dt * every;  // the probes' node stiffness stays the served one
+  prime_body_model(&b);
+  return b;
+}
+
+int ticks_per_body_step(const Model& m) {
+  const double r = 1.0 / (m.options.dt * m.options.body_rate_hz);
+  return std::max(1, static_cast<int>(std::lround(r)));
+}
+
+}  // namespace
+
+BodyWorker::BodyWorker(const Model& served, const State& rest)
+    : body_(body_model(served, ticks_per_body_step(served))),
+      body_state_(rest),
+      ws_(body_),
+      builder_(body_),
+      every_(ticks_per_body_step(served)) {
+  double r = 0;
+  for (const ProbeSpec& p : served.probes) r = std::max(r, p.radius);
+  reach_ = served.options.body_reach > 0 ? served.options.body_reach : 0.5 * r;
+  for (Snapshot& s : snap_) {
+    s.local.assign(served.probes.size(), LocalModel());
+    s.x = rest.x;
+  }
+  input_ = rest.probes;
+  prime_workspace(ws_);
+  thread_ = std::thread([this] { run(); });
+}
+
+BodyWorker::~BodyWorker() {
+  state_.store(kStop, std::memory_order_release);
+  state_.notify_all();
+  thread_.join();
+}
+
+void BodyWorker::run() {
+  sched_param p{};
+  p.sched_priority = 0;
+  pthread_setschedparam(pthread_self(), SCHED_OTHER, &p);  // not the loop's real-time policy
+  for (;;) {
+    const int v = state_.load(std::memory_order_acquire);
+    if (v == kStop) return;
+    if (v != kRun) {
+      state_.wait(v, std::memory_order_acquire);
+      continue;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    for (size_t k = 0; k < input_.size(); ++k) {
+      body_state_.probes[k].radius = input_[k].radius;
+      set_probe(body_state_, static_cast<int>(k), input_[k].center, input_[k].active);
+    }
+    step(body_, body_state_, ws_);
+    Snapshot& out = snap_[back_];
+    for (size_t k = 0; k < input_.size(); ++k) {
+      LocalModel& lm = out.local[k];
+      if (!input_[k].active ||
+          !builder_.build(body_, body_state_, ws_, static_cast<int>(k), reach_, &lm)) {
+        lm.valid = false;
+        lm.num = 0;
+      }
+    }
+    std::copy(body_state_.x.begin(), body_state_.x.end(), out.x.begin());
+    body_ns_.store(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0)
+            .count(),
+        std::memory_order_relaxed);
+    int expected = kRun;
+    state_.compare_exchange_strong(expected, kDone, std::memory_order_acq_rel);
+  }
+}
+
+void BodyWorker::answer(const Model& served, const std::vector<Vec3>& x, int k, const Vec3& center,
+                        double radius, ProbeState* probe, std::vector<Vec3>* x_out) {
+  LocalModel& lm = snap_[front_].local[k];
+  const double R = radius > 0 ? radius : probe->radius;
+  if (lm.valid && (center - lm.center0).norm() <= reach_) {
+    haptic_contact(served, lm, k, center, R, probe, x_out);
+  } else {
+    probe_contact(served, x, k, center, R, probe);
+    ++frozen_;
+  }
+}
+
+void BodyWorker::tick(const Model& served, State& s) {
+  if (state_.load(std::memory_order_acquire) == kDone) {
+    std::swap(front_, back_);
+    std::copy(snap_[front_].x.begin(), snap_[front_].x.end(), s.x.begin());
+    ++body_steps_;
+    state_.store(kIdle, std::memory_order_release);
+  }
+  if (++since_ >= every_) {
+    if (state_.load(std::memory_order_acquire) == kIdle) {
+      std::copy(s.probes.begin(), s.probes.end(), input_.begin());
+      since_ = 0;
+      state_.store(kRun, std::memory_order_release);
+      state_.notify_one();
+    } else {
+      ++late_ticks_;
+    }
+  }
+  for (size_t k = 0; k < s.probes.size(); ++k) {
+    ProbeState& p = s.probes[k];
+    if (!p.active) {
+      p.force.setZero();
+      p.stiffness.setZero();
+      p.contacts = 0;
+      continue;
+    }
+    answer(served, snap_[front_].x, static_cast<int>(k), p.center, p.radius, &p, &s.x);
+  }
+  ++s.tick;
+  s.time += served.options.dt;
+}
+
+void BodyWorker::contact(const Model& served, const State& /*s*/, int k, const Vec3& center,
+                         double radius, ProbeState* probe) {
+  answer(served, snap_[front_].x, k, center, radius, probe, nullptr);
+}
+
+}  // namespace conica::loop

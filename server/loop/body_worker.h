@@ -1,0 +1,77 @@
+// Multi-rate serving (solver body_rate_hz, core/multirate.h): the accurate body steps at its own
+// rate on a thread of its own, and each 1 kHz tick answers the probes from the local compliance
+// its last step left, so a body whose step costs tens of milliseconds is felt at 1 kHz.
+//
+// Every `every` ticks the tick hands the probes' poses to the body thread (if it is idle), which
+// steps the body once by every / rate seconds with the probes there (implicit Euler), builds each
+// active probe's local model and hands back the model and the node positions through a second
+// buffer. The tick swaps in a finished step at its start and never waits: a body thread that falls
+// behind leaves the tick on the last local model (late_ticks counts the ticks a step was due but
+// the thread was still busy). A probe farther from where the body step saw it than the local
+// model's reach, or one with no local model yet, is answered by the node law against the body's
+// last positions (the frozen body).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "core/model.h"
+#include "core/multirate.h"
+#include "core/step.h"
+
+namespace conica::loop {
+
+class BodyWorker {
+ public:
+  // `served`: the scene's model (dt one tick) at rest in `rest`; the body steps every
+  // round(rate / options.body_rate_hz) ticks. Allocates; starts the thread (normal priority).
+  BodyWorker(const Model& served, const State& rest);
+  ~BodyWorker();
+  BodyWorker(const BodyWorker&) = delete;
+  BodyWorker& operator=(const BodyWorker&) = delete;
+
+  // In place of step() at each tick (the loop thread): no allocation, never waits.
+  void tick(const Model& served, State& s);
+  // A probe's force at a pose between ticks (the probe reply), like tick's.
+  void contact(const Model& served, const State& s, int k, const Vec3& center, double radius,
+               ProbeState* probe);
+
+  int every() const { return every_; }
+  bool stepping() const { return state_.load(std::memory_order_acquire) == kRun; }  // any thread
+  double reach() const { return reach_; }
+  std::uint64_t body_steps() const { return body_steps_; }  // swapped in
+  std::uint64_t late_ticks() const { return late_ticks_; }
+  std::uint64_t frozen_answers() const { return frozen_; }  // answered by the frozen body
+  // The body thread's last step plus local models, ns (relaxed; for statistics).
+  std::int64_t last_body_ns() const { return body_ns_.load(std::memory_order_relaxed); }
+
+ private:
+  enum : int { kIdle = 0, kRun = 1, kDone = 2, kStop = 3 };
+  struct Snapshot {
+    std::vector<LocalModel> local;  // (probes)
+    std::vector<Vec3> x;            // (nodes) m
+  };
+  void run();
+  void answer(const Model& served, const std::vector<Vec3>& x, int k, const Vec3& center,
+              double radius, ProbeState* probe, std::vector<Vec3>* x_out);
+
+  Model body_;  // the served model, dt = every ticks
+  State body_state_;
+  Workspace ws_;
+  LocalModelBuilder builder_;
+  int every_ = 1;
+  double reach_ = 0;  // m, the region's margin beyond the probe radius
+  Snapshot snap_[2];
+  int front_ = 0, back_ = 1;
+  std::vector<ProbeState> input_;  // the poses of the next body step
+  std::atomic<int> state_{kIdle};
+  std::atomic<std::int64_t> body_ns_{0};
+  int since_ = 0;
+  std::uint64_t body_steps_ = 0, late_ticks_ = 0, frozen_ = 0;
+  std::thread thread_;
+};
+
+}  // namespace conica::loop
