@@ -240,6 +240,7 @@ ContactScratch contact_scratch(const Model& m) {
   const size_t nn = m.num_nodes();
   C.n.assign(nn, Vec3::Zero());
   C.block.assign(nn, Mat3::Zero());
+  C.v_ref.assign(nn, Vec3::Zero());
   C.nodes.assign(nn, 0);
   C.in_contact.assign(nn, 0);
   C.candidates.assign(m.probes.size(), ContactCandidates(m));

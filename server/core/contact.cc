@@ -566,6 +566,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   if (candidates) candidates->triangles.clear();
   if (!p->active) {
     p->proxy_placed = false;
+    p->proxy_velocity.setZero();
     p->anchor = -1;
     p->stick = -1;
     p->friction_force.setZero();
@@ -575,6 +576,8 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   const double R = probe_radius(m, k, *p);
   const double kvc = coupling_stiffness(m, k, R);
   const Vec3 target = p->center;
+  const Vec3 last_proxy = p->proxy;
+  const bool was_placed = p->proxy_placed;
   const int nt = static_cast<int>(m.surface.size());
   const bool spec_is_sphere = m.probes[k].shape == ToolShape::kSphere;
   // The proxy never moves deeper than this into the surface it sees (the barrier's linear
@@ -756,6 +759,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     p->stick = -1;
     p->friction_limit = 0;
   }
+  p->proxy_velocity = was_placed ? Vec3((at - last_proxy) / m.options.dt) : Vec3::Zero();
   p->proxy = at;
   p->depth = c.depth;
   p->contacts = c.faces;

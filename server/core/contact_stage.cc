@@ -72,6 +72,7 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
     const int i = ws.contact.nodes[q];
     ws.contact.n[i].setZero();
     ws.contact.block[i].setZero();
+    ws.contact.v_ref[i].setZero();
     ws.contact.in_contact[i] = 0;
   }
   ws.contact.num_nodes = 0;
@@ -96,10 +97,17 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                  ws.contact.block.data(), kToolForceOnly);
     if (c.faces == 0) continue;
     friction_forces(m, static_cast<int>(q), p, s.x, ws.force.data(), ws.contact.block.data());
+    // The layer's reference velocity (two probes on one node: the last one's, approximate).
     for (int t : cand)
-      for (int i : m.surface[t]) list_contact_node(ws, i);
+      for (int i : m.surface[t]) {
+        list_contact_node(ws, i);
+        ws.contact.v_ref[i] = p.proxy_velocity;
+      }
     if (p.stick >= 0)
-      for (int i : m.surface[p.stick]) list_contact_node(ws, i);
+      for (int i : m.surface[p.stick]) {
+        list_contact_node(ws, i);
+        ws.contact.v_ref[i] = p.proxy_velocity;
+      }
   }
   for (size_t q = 0; q < m.planes.size(); ++q) {
     PlaneState& pl = s.planes[q];
@@ -195,18 +203,24 @@ void update_proxies(const Model& m, State& s, Workspace& ws) {
       update_proxy(m, static_cast<int>(q), s.x, &ws.contact.candidates[q], &s.probes[q]);
 }
 
-// Explicit integrators take the contact layer semi-implicitly (step.h): a node with a layer
-// stiffness B advances with m (m I + h^2 B)^-1 f instead of f, on its free axes.
-void semi_implicit_contact(const Model& m, Workspace& ws, double h) {
+// Explicit integrators take the contact layer implicitly (step.h): backward Euler on the layer
+// force linearised at x, m (v1 - v) = h (f - B h (v1 - v_p)) with v_p the proxy's velocity over
+// its last update, so a node with a layer stiffness B advances with the force
+// m (m I + h^2 B)^-1 (f - h B (v - v_p)) instead of f, on its free axes. The h B (v - v_p) term
+// is the layer's own backward-Euler damping: without it a node that meets the proxy keeps its
+// speed into the layer and gives the energy back on the way out; relative to the proxy it leaves
+// a node that moves with the tool (a steady press or drag) undamped.
+void semi_implicit_contact(const Model& m, const State& s, Workspace& ws, double h) {
   for (int q = 0; q < ws.contact.num_nodes; ++q) {
     const int i = ws.contact.nodes[q];
     if (m.fixed[i] == 7) continue;
     const Mat3& B = ws.contact.block[i];
     if (B.squaredNorm() == 0) continue;
     const Vec3& free = m.free_axes[i];
-    const Mat3 A =
-        m.mass[i] * Mat3::Identity() + h * h * (free.asDiagonal() * B * free.asDiagonal());
-    ws.force[i] = m.mass[i] * A.ldlt().solve(ws.force[i]);
+    const Mat3 Bf = free.asDiagonal() * B * free.asDiagonal();
+    const Mat3 A = m.mass[i] * Mat3::Identity() + h * h * Bf;
+    ws.force[i] =
+        m.mass[i] * A.ldlt().solve(ws.force[i] - h * (Bf * (s.v[i] - ws.contact.v_ref[i])));
   }
 }
 

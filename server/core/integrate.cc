@@ -66,7 +66,7 @@ void relax_maxwell(const Model& m, State& s, double h) {
 void integrate_explicit(const Model& m, State& s, Workspace& ws, bool symplectic) {
   const double h = detail::substep_of(m);
   evaluate_forces(m, s, ws, false);
-  semi_implicit_contact(m, ws, h);
+  semi_implicit_contact(m, s, ws, h);
   const int nn = m.num_nodes();
   if (!region_in_use(m, s)) {
     advance_nodes(nn, h, symplectic, ws.force.front().data(), m.inv_mass.data(),

@@ -219,8 +219,9 @@ struct ProbeState {
   Mat3 stiffness = Mat3::Zero();  // N/m, d force / d center with nodes held
   int contacts = 0;               // surface triangles in contact
   // The proxy (core/contact.h): the pose the tool takes in the body's world.
-  Vec3 proxy = Vec3::Zero();        // m
-  bool proxy_placed = false;        // false until the first update after activation
+  Vec3 proxy = Vec3::Zero();           // m
+  bool proxy_placed = false;           // false until the first update after activation
+  Vec3 proxy_velocity = Vec3::Zero();  // m/s, the proxy's move in its last update / dt
   double depth = 0;                 // m, deepest penetration of the tool into the deformed surface
   int anchor = -1;                  // surface triangle nearest the proxy (-1: none in reach)
   Vec3 anchor_bary = Vec3::Zero();  // barycentric coordinates of the nearest point on it

@@ -37,10 +37,13 @@
 // (core/contact.h). At the start of a tick each probe's proxy moves toward its device target with
 // the nodes held (the proxy stage); the body then steps with the tools held at their proxies, the
 // contact layer's forces on the surface triangles' nodes in its forces. Explicit integrators take
-// the contact layer semi-implicitly: a node in contact advances with the force m (m I + h^2 B)^-1
-// f, B its lumped layer stiffness, which bounds the layer's stiffness from above, so the stiff
-// layer never limits the step (the equilibrium is the same: f = 0 there). Rigid planes {n.x >=
-// offset}: f_node = k_p (offset - n.x) n for nodes behind the plane.
+// the contact layer by linearised backward Euler: a node in contact advances with the force
+// m (m I + h^2 B)^-1 (f - h B (v - v_p)), v_p the proxy's velocity over its last update, B the
+// node's lumped layer stiffness, which bounds the layer's stiffness from above, so the stiff layer
+// never limits the step (h^2 B / m of a touched node is often past the explicit bound of 4) and a
+// node that meets the proxy does not keep its speed into the layer (the equilibrium is the same:
+// f = 0, v = v_p = 0 there). Rigid planes {n.x >= offset}: f_node = k_p (offset - n.x) n for nodes
+// behind the plane.
 //
 // Active region (options.active_region, explicit integrators): a probe pressing with force P moves
 // the surface of an elastic half-space by about u(r) = P (1 - nu^2) / (pi E r) at distance r
@@ -176,11 +179,13 @@ struct ElementScratch {
 // The contact stage's scratch (contact_stage.cc, core/contact.h). Planes: normal * sqrt(h^2 k_p)
 // per node behind a plate (implicit only). Probes: each node's lumped layer stiffness (N/m), what
 // the implicit system and the explicit integrators' semi-implicit contact update use; frictional
-// plates add their tangential stiffness there too (implicit only). The first
-// num_nodes entries of nodes list the nodes with either (in_contact flags them).
+// plates add their tangential stiffness there too (implicit only). The first num_nodes entries of
+// nodes list the nodes with either (in_contact flags them). v_ref: the velocity of the proxy a
+// probe node's layer holds it against (what the explicit update's layer damping is relative to).
 struct ContactScratch {
   std::vector<Vec3> n;                   // (num_nodes)
   std::vector<Mat3> block;               // (num_nodes) N/m
+  std::vector<Vec3> v_ref;               // (num_nodes) m/s
   std::vector<int> nodes;                // (num_nodes)
   std::vector<std::uint8_t> in_contact;  // (num_nodes)
   int num_nodes = 0;

@@ -118,8 +118,8 @@ Vec3 plate_friction_force(const Vec3& d, double kp, double limit, const Mat3& ta
 void commit_friction(const Model& m, State& s);
 // The proxy stage: every surface-contact probe's proxy toward its device target.
 void update_proxies(const Model& m, State& s, Workspace& ws);
-// Explicit integrators: nodes in contact advance with m (m I + h^2 B)^-1 f.
-void semi_implicit_contact(const Model& m, Workspace& ws, double h);
+// Explicit integrators: nodes in contact advance with m (m I + h^2 B)^-1 (f - h B (v - v_proxy)).
+void semi_implicit_contact(const Model& m, const State& s, Workspace& ws, double h);
 
 // Active region (region.cc).
 bool region_in_use(const Model& m, const State& s);
