@@ -9,22 +9,13 @@
 #include <cmath>
 
 #include "core/step.h"
+#include "hooke_block.h"
 
 namespace conica::lab {
 namespace {
 
 BodySpec Block(int nx, int nz, double side, double height) {
-  BodySpec s;
-  s.mesh = make_box_lattice(Vec3(side, side, height), {nx, nx, nz});
-  s.density = 1000;
-  SpringCard c;
-  c.law = LawKind::kHooke;
-  c.hooke_k = 50;  // N/m
-  c.hooke_length = 0.01;
-  s.groups.push_back({"all", c, kAllFamilies, {}, Vec3::Zero(), 10});
-  s.shear_modulus = 2000;  // Pa
-  s.bulk_modulus = 20000;  // Pa
-  return s;
+  return HookeBlock(nx, nz, side, height);
 }
 
 // The reaction (N) of the linearised body with the driven nodes `driven` moved by `u` (m) on
