@@ -47,6 +47,26 @@ void lu_solve(const double* a, int n, int ld, const int* pivot, double* b) {
   }
 }
 
+// The region of a probe at `center`: the free nodes within `reach` of it at positions x, the
+// closest first, at most lm's capacity, into lm->nodes and lm->x0 (near: scratch, reserved).
+void choose_region(const Model& m, const std::vector<Vec3>& x, const Vec3& center, double reach,
+                   std::vector<std::pair<double, int>>* near, LocalModel* lm) {
+  near->clear();
+  for (int i = 0; i < m.num_nodes(); ++i) {
+    if (m.fixed[i] == 7) continue;
+    const double d2 = (x[i] - center).squaredNorm();
+    if (d2 < reach * reach) near->emplace_back(d2, i);
+  }
+  const int num = std::min<int>(lm->capacity, static_cast<int>(near->size()));
+  std::partial_sort(near->begin(), near->begin() + num, near->end());
+  lm->num = num;
+  lm->center0 = center;
+  for (int a = 0; a < num; ++a) {
+    lm->nodes[a] = (*near)[a].second;
+    lm->x0[a] = x[lm->nodes[a]];
+  }
+}
+
 }  // namespace
 
 LocalModel::LocalModel(int cap)
@@ -83,23 +103,12 @@ bool LocalModelBuilder::build(const Model& m, State& s, Workspace& ws, int k, do
 
   const ProbeState& p = s.probes[k];
   const Vec3 c = p.center;
-  const double R = probe_radius(m, k, p), reach = R + margin;
-  const double kc = m.probes[k].stiffness;
-  near_.clear();
-  for (int i = 0; i < nn; ++i) {
-    if (m.fixed[i] == 7) continue;
-    const double d2 = (s.x[i] - c).squaredNorm();
-    if (d2 < reach * reach) near_.emplace_back(d2, i);
-  }
-  const int num = std::min<int>(lm->capacity, static_cast<int>(near_.size()));
-  std::partial_sort(near_.begin(), near_.begin() + num, near_.end());
-  lm->num = num;
+  const double R = probe_radius(m, k, p), kc = m.probes[k].stiffness;
+  choose_region(m, s.x, c, R + margin, &near_, lm);
+  const int num = lm->num;
   lm->h = h;
-  lm->center0 = c;
   for (int a = 0; a < num; ++a) {
-    const int i = near_[a].second;
-    lm->nodes[a] = i;
-    lm->x0[a] = s.x[i];
+    const int i = lm->nodes[a];
     Vec3 f, dir;
     Mat3 dfdc;
     if (p.active && node_contact(s.x[i], m.normal[i], c, R, kc, &f, &dfdc, &dir)) {
@@ -139,24 +148,12 @@ bool LocalModelBuilder::build(const Model& m, State& s, Workspace& ws, int k, do
 void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
                           double radius, double margin, std::vector<std::pair<double, int>>* near,
                           LocalModel* lm) {
-  const int nn = m.num_nodes();
-  const double reach = radius + margin, kt = 0.1 * m.probes[k].stiffness;
-  near->clear();
-  for (int i = 0; i < nn; ++i) {
-    if (m.fixed[i] == 7) continue;
-    const double d2 = (x[i] - center).squaredNorm();
-    if (d2 < reach * reach) near->emplace_back(d2, i);
-  }
-  const int num = std::min<int>(lm->capacity, static_cast<int>(near->size()));
-  std::partial_sort(near->begin(), near->begin() + num, near->end());
-  lm->num = num;
-  lm->center0 = center;
+  const double kt = 0.1 * m.probes[k].stiffness;
+  choose_region(m, x, center, radius + margin, near, lm);
+  const int num = lm->num;
   lm->valid = false;  // an estimate, not a body step's model
   const int ld = 3 * lm->capacity;
   for (int a = 0; a < num; ++a) {
-    const int i = (*near)[a].second;
-    lm->nodes[a] = i;
-    lm->x0[a] = x[i];
     lm->f0[a].setZero();
     lm->b0[a].setZero();
   }
@@ -167,9 +164,17 @@ void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, con
     }
 }
 
-void prime_body_model(Model* body) {
-  body->options.refactor_every = 0;
-  body->options.refactor_iterations = std::numeric_limits<int>::max();
+int ticks_per_body_step(const Model& served) {
+  const double r = 1.0 / (served.options.dt * served.options.body_rate_hz);
+  return std::max(1, static_cast<int>(std::lround(r)));
+}
+
+Model body_model(const Model& served) {
+  Model b = served;
+  b.options.dt = served.options.dt * ticks_per_body_step(served);
+  b.options.refactor_every = 0;
+  b.options.refactor_iterations = std::numeric_limits<int>::max();
+  return b;
 }
 
 void prime_workspace(Workspace& ws) {

@@ -79,10 +79,13 @@ void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, con
                           double radius, double margin, std::vector<std::pair<double, int>>* near,
                           LocalModel* lm);
 
-// A multi-rate body's options and workspace: with kFactorCG its step never factors a system of
-// its own (the builder hands it a fresh supernodal factor after every step; until the first, CG
-// is block-Jacobi preconditioned).
-void prime_body_model(Model* body);
+// Ticks per body step of a served model (options.body_rate_hz > 0): round(rate / body rate).
+int ticks_per_body_step(const Model& served);
+// The body a served model steps on its own thread: its step ticks_per_body_step ticks long (the
+// probes' node stiffness stays the served one) and, with kFactorCG, no factorisation of its own
+// (the builder hands it a fresh supernodal factor after every step; until the first,
+// prime_workspace leaves CG block-Jacobi preconditioned).
+Model body_model(const Model& served);
 void prime_workspace(Workspace& ws);
 
 // The 1 kHz side: probe k of radius R at `center` against the local model; fills probe's force,

@@ -8,24 +8,8 @@
 #include <cmath>
 
 namespace conica::loop {
-namespace {
-
-Model body_model(const Model& served, int every) {
-  Model b = served;
-  b.options.dt = served.options.dt * every;  // the probes' node stiffness stays the served one
-  prime_body_model(&b);
-  return b;
-}
-
-int ticks_per_body_step(const Model& m) {
-  const double r = 1.0 / (m.options.dt * m.options.body_rate_hz);
-  return std::max(1, static_cast<int>(std::lround(r)));
-}
-
-}  // namespace
-
 BodyWorker::BodyWorker(const Model& served, const State& rest)
-    : body_(body_model(served, ticks_per_body_step(served))),
+    : body_(body_model(served)),
       body_state_(rest),
       ws_(body_),
       builder_(body_),

@@ -40,11 +40,8 @@ std::string prepare_scene(const BodySpec& spec, const PrepareOptions& opt, Scene
   double budget_s = period_s;
   if (m->options.body_rate_hz > 0) {
     // Multi-rate: the body's step and local model at its own step, against its own period.
-    Model b = *m;
-    const int every =
-        std::max(1, static_cast<int>(std::lround(1.0 / (period_s * m->options.body_rate_hz))));
-    b.options.dt = m->options.dt * every;
-    prime_body_model(&b);
+    const Model b = body_model(*m);
+    const int every = ticks_per_body_step(*m);
     budget_s = period_s * every;
     n = std::max(1, std::min(n, 5));
     SteadyClock clock;
