@@ -12,6 +12,9 @@ PACKAGES=(
   libspdlog-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libceres-dev
   calculix-ccx  # conica-lab fem-reference: the continuum reference (docs/validation.md)
   libsuitesparse-dev  # CHOLMOD: the implicit system's sparse factor (server/core/sparse_system.h)
+  # single-threaded OpenBLAS for CHOLMOD's supernodal factor (Debian picks it over ATLAS): the
+  # phantom's factorisation 7 ms against ATLAS's 16 ms (docs/performance.md, "Multi-rate serving")
+  libopenblas0-serial
   tetgen  # scripts/mesh-liver-fine.sh: the finer liver of configs/liver-fine-ef30.pbtxt
   python3-zmq python3-protobuf python3-matplotlib python3-numpy python3-websockets python3-meshio
   python3-venv python3-pip python3-setuptools python3-wheel python3-pytest

@@ -188,6 +188,13 @@ double dot(int n, const double* __restrict a, const double* __restrict b) {
   return m;
 }
 
+// The Newton iteration is done once its update dx (component-major, before the line search)
+// moves no node farther than options.newton_tolerance (0: never; the whole budget runs).
+bool newton_converged(const Model& m, int nn, const double* dx) {
+  const double tol = m.options.newton_tolerance;
+  return tol > 0 && max_node_motion2(nn, dx) <= tol * tol;
+}
+
 // y = A p on free axes (component-major).
 void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
   const int nn = m.num_nodes();
@@ -493,6 +500,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
     for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
     build_preconditioner(m, ws);
     s.counters.cg_iterations += solve(m, ws);
+    ++s.counters.newton_iterations;
 
     // Line search: never make a spring shorter than its hard-stop length (unless it was already
     // and the step does not shorten it further). Measured along its direction, a spring's length
@@ -511,6 +519,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
       }
     }
     for (int i = 0; i < nn; ++i) s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
+    if (newton_converged(m, nn, dx)) break;
   }
   for (int i = 0; i < nn; ++i)
     s.v[i] = ((s.x[i] - ws.system.x0[i]) / h).cwiseProduct(m.free_axes[i]);
@@ -546,6 +555,7 @@ void integrate_implicit_factored(const Model& m, State& s, Workspace& ws) {
     system_coefficients(m, ws, h);
     for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
     s.counters.cg_iterations += factored_solve(m, s, ws);
+    ++s.counters.newton_iterations;
 
     // Line search: never make a spring shorter than its hard-stop length (unless it was already
     // and the step does not shorten it further). Measured along its direction, a spring's length
@@ -564,6 +574,7 @@ void integrate_implicit_factored(const Model& m, State& s, Workspace& ws) {
       }
     }
     for (int i = 0; i < nn; ++i) s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
+    if (newton_converged(m, nn, dx)) break;
   }
   for (int i = 0; i < nn; ++i)
     s.v[i] = ((s.x[i] - ws.system.x0[i]) / h).cwiseProduct(m.free_axes[i]);

@@ -70,11 +70,13 @@ enum class LinearSolver : std::uint8_t {
 
 struct SolverOptions {
   Integrator integrator = Integrator::kSymplecticEuler;
-  double dt = 1e-3;            // s, one tick
-  int substeps = 1;            // steps per tick (dt / substeps each)
-  int newton_iterations = 2;   // implicit: fixed budget per step
-  int cg_iterations = 40;      // implicit: fixed budget per Newton iteration
-  double cg_tolerance = 1e-8;  // implicit: relative residual to stop early
+  double dt = 1e-3;             // s, one tick
+  int substeps = 1;             // steps per tick (dt / substeps each)
+  int newton_iterations = 2;    // implicit: budget per step
+  double newton_tolerance = 0;  // m, implicit: stop when an update moves no node farther (0: the
+                                // whole budget every step)
+  int cg_iterations = 40;       // implicit: fixed budget per Newton iteration
+  double cg_tolerance = 1e-8;   // implicit: relative residual to stop early
   LinearSolver linear_solver = LinearSolver::kBlockJacobiCG;  // implicit
   int refactor_every = 0;       // kFactorCG: steps between factorisations (0: only on demand)
   int refactor_iterations = 4;  // kFactorCG: a solve that takes more CG iterations asks for a
@@ -273,14 +275,15 @@ const char* stage_name(Stage stage);
 // Counters the step reports through instead of logging.
 struct Counters {
   std::uint64_t steps = 0;
-  std::uint64_t rollbacks = 0;        // guard trips rolled back to the last good state
-  std::uint64_t nan_events = 0;       // NaN / Inf found after a step
-  std::uint64_t speed_events = 0;     // a node faster than options.max_speed
-  std::uint64_t hard_stops = 0;       // springs projected back to their minimum length
-  std::uint64_t cg_iterations = 0;    // total, implicit only
-  std::uint64_t factorizations = 0;   // kFactorCG: factors taken into use
-  std::uint64_t factor_failures = 0;  // kFactorCG: factorisations refused (not positive definite)
-  std::uint64_t awake_nodes = 0;      // active region: nodes integrated in the last tick
+  std::uint64_t rollbacks = 0;          // guard trips rolled back to the last good state
+  std::uint64_t nan_events = 0;         // NaN / Inf found after a step
+  std::uint64_t speed_events = 0;       // a node faster than options.max_speed
+  std::uint64_t hard_stops = 0;         // springs projected back to their minimum length
+  std::uint64_t cg_iterations = 0;      // total, implicit only
+  std::uint64_t newton_iterations = 0;  // total, implicit only
+  std::uint64_t factorizations = 0;     // kFactorCG: factors taken into use
+  std::uint64_t factor_failures = 0;    // kFactorCG: factorisations refused (not positive definite)
+  std::uint64_t awake_nodes = 0;        // active region: nodes integrated in the last tick
   std::array<std::uint64_t, kNumStages> stage_ns{};  // ns spent in each stage, in all (steady
                                                      // clock; diagnostic, not part of replay)
 };

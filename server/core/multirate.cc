@@ -59,6 +59,10 @@ void choose_region(const Model& m, const std::vector<Vec3>& x, const Vec3& cente
   }
   const int num = std::min<int>(lm->capacity, static_cast<int>(near->size()));
   std::partial_sort(near->begin(), near->begin() + num, near->end());
+  // By node index: the same nodes make the same region wherever the probe is among them (the
+  // builder reuses W then).
+  std::sort(near->begin(), near->begin() + num,
+            [](const auto& a, const auto& b) { return a.second < b.second; });
   lm->num = num;
   lm->center0 = center;
   for (int a = 0; a < num; ++a) {
@@ -85,54 +89,41 @@ LocalModel::LocalModel(int cap)
       pivot(4 * static_cast<size_t>(cap), 0) {}
 
 LocalModelBuilder::LocalModelBuilder(const Model& m)
-    : factor_(std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)) {
+    : factor_(std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)),
+      held_(m.probes.size(), std::vector<Mat3>(m.num_nodes(), Mat3::Zero())),
+      regions_(m.probes.size()) {
   near_.reserve(m.num_nodes());
 }
 
 LocalModelBuilder::~LocalModelBuilder() = default;
 
-bool LocalModelBuilder::build(const Model& m, State& s, Workspace& ws, int k, double margin,
-                              LocalModel* lm) {
+SystemFactor* LocalModelBuilder::last(Workspace& ws) {
+  return ws.factor && ws.factor->current->kind() == SystemFactor::Kind::kSupernodal
+             ? ws.factor->current.get()
+             : factor_.get();
+}
+
+bool LocalModelBuilder::refactor(const Model& m, State& s, Workspace& ws) {
   const double h = detail::substep_of(m);
-  const int nn = m.num_nodes();
-  lm->valid = false;
-  lm->num = 0;
   detail::prepare_system_at(m, s, ws, h);
   factor_->assemble(m, ws);
-  if (!factor_->factorize()) return false;
-
-  const ProbeState& p = s.probes[k];
-  const Vec3 c = p.center;
-  const double R = probe_radius(m, k, p), kc = m.probes[k].stiffness;
-  choose_region(m, s.x, c, R + margin, &near_, lm);
-  const int num = lm->num;
-  lm->h = h;
-  for (int a = 0; a < num; ++a) {
-    const int i = lm->nodes[a];
-    Vec3 f, dir;
-    Mat3 dfdc;
-    if (p.active && node_contact(s.x[i], m.normal[i], c, R, kc, &f, &dfdc, &dir)) {
-      lm->f0[a] = f;
-      lm->b0[a] = kc * dir * dir.transpose();  // what the contact stage put in the system
-    } else {
-      lm->f0[a].setZero();
-      lm->b0[a].setZero();
+  if (!factor_->factorize()) {
+    generation_ = 0;  // the factor in hand is unusable; so is every W from an earlier one
+    for (Region& r : regions_) r.generation = 0;
+    return false;
+  }
+  ++generation_;
+  for (size_t k = 0; k < m.probes.size(); ++k) {  // what the contact stage put in the system
+    const ProbeState& p = s.probes[k];
+    const double R = probe_radius(m, static_cast<int>(k), p), kc = m.probes[k].stiffness;
+    for (int i = 0; i < m.num_nodes(); ++i) {
+      Vec3 f, dir;
+      Mat3 dfdc;
+      held_[k][i] = p.active && node_contact(s.x[i], m.normal[i], p.center, R, kc, &f, &dfdc, &dir)
+                        ? Mat3(kc * dir * dir.transpose())
+                        : Mat3::Zero();
     }
   }
-  // W_RR = h^2 A^-1 restricted to the region: the region's unit vectors solved at once (their
-  // solves on a fixed axis give zero).
-  const int n3 = 3 * num, ld = 3 * lm->capacity, n = 3 * nn;
-  r_.assign(static_cast<size_t>(n) * std::max(n3, 1), 0.0);  // grows to the largest region once
-  z_.resize(r_.size());
-  for (int col = 0; col < n3; ++col)
-    r_[static_cast<size_t>(col) * n + (col % 3) * nn + lm->nodes[col / 3]] = 1.0;
-  if (n3 > 0) factor_->solve_many(r_.data(), z_.data(), n3);
-  for (int col = 0; col < n3; ++col)
-    for (int b = 0; b < num; ++b)
-      for (int cb = 0; cb < 3; ++cb)
-        lm->w[(3 * b + cb) * ld + col] =
-            h * h * z_[static_cast<size_t>(col) * n + cb * nn + lm->nodes[b]];
-  lm->valid = true;
   // The fresh factor is the best preconditioner the body's next step can have (kFactorCG): hand
   // it over and keep the one it had as the next scratch.
   if (ws.factor) {
@@ -142,6 +133,57 @@ bool LocalModelBuilder::build(const Model& m, State& s, Workspace& ws, int k, do
     if (factor_->kind() != SystemFactor::Kind::kSupernodal)  // the first hand-over only
       factor_ = std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal);
   }
+  return true;
+}
+
+bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int k, double margin,
+                              LocalModel* lm) {
+  lm->valid = false;
+  lm->num = 0;
+  if (generation_ == 0) return false;
+  const int nn = m.num_nodes();
+  const ProbeState& p = s.probes[k];
+  const Vec3 c = p.center;
+  const double R = probe_radius(m, k, p), kc = m.probes[k].stiffness;
+  choose_region(m, s.x, c, R + margin, &near_, lm);
+  const int num = lm->num;
+  lm->h = detail::substep_of(m);
+  for (int a = 0; a < num; ++a) {
+    const int i = lm->nodes[a];
+    Vec3 f, dir;
+    Mat3 dfdc;
+    lm->f0[a] =
+        p.active && node_contact(s.x[i], m.normal[i], c, R, kc, &f, &dfdc, &dir) ? f : Vec3::Zero();
+    lm->b0[a] = held_[k][i];
+  }
+  // W_RR = h^2 A^-1 restricted to the region: the region's unit vectors solved at once (their
+  // solves on a fixed axis give zero), unless the same region has them from the same factor.
+  Region& reg = regions_[k];
+  const int n3 = 3 * num, ld = 3 * lm->capacity, n = 3 * nn;
+  const bool same = reg.generation == generation_ && reg.num == num &&
+                    std::equal(lm->nodes.begin(), lm->nodes.begin() + num, reg.nodes.begin());
+  if (!same) {
+    r_.assign(static_cast<size_t>(n) * std::max(n3, 1), 0.0);  // grows to the largest region once
+    z_.resize(r_.size());
+    for (int col = 0; col < n3; ++col)
+      r_[static_cast<size_t>(col) * n + (col % 3) * nn + lm->nodes[col / 3]] = 1.0;
+    if (n3 > 0) last(ws)->solve_many(r_.data(), z_.data(), n3);
+    const double h2 = lm->h * lm->h;
+    reg.w.resize(static_cast<size_t>(n3) * n3);
+    for (int col = 0; col < n3; ++col)
+      for (int b = 0; b < num; ++b)
+        for (int cb = 0; cb < 3; ++cb)
+          reg.w[(3 * b + cb) * n3 + col] =
+              h2 * z_[static_cast<size_t>(col) * n + cb * nn + lm->nodes[b]];
+    reg.generation = generation_;
+    reg.num = num;
+    reg.nodes.assign(lm->nodes.begin(), lm->nodes.begin() + num);
+    ++solves_;
+  }
+  for (int row = 0; row < n3; ++row)
+    std::copy(reg.w.begin() + static_cast<size_t>(row) * n3,
+              reg.w.begin() + static_cast<size_t>(row + 1) * n3, lm->w.begin() + row * ld);
+  lm->valid = true;
   return true;
 }
 
@@ -162,6 +204,12 @@ void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, con
       const int i = lm->nodes[r / 3];
       lm->w[r * ld + c] = r == c && m.free_axes[i][r % 3] > 0 && kt > 0 ? 1.0 / kt : 0.0;
     }
+}
+
+bool refactor_due(const SolverOptions& o, bool factored, int steps_since, double cg_per_newton,
+                  bool rolled_back) {
+  return !factored || (o.refactor_every > 0 && steps_since >= o.refactor_every) ||
+         cg_per_newton > o.refactor_iterations || rolled_back;
 }
 
 int ticks_per_body_step(const Model& served) {

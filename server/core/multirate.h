@@ -15,12 +15,14 @@
 // With c = c0, dx = 0 solves (1) exactly: between body steps the force is continuous with the
 // body's own, and moves with the probe as the body would, to first order in the body's response.
 //
-// Built on the body's thread after each body step (build_local_model: one force evaluation, an
-// assembly and a numeric factorisation, which allocates inside CHOLMOD, and 3 |R| solves); solved
+// Built on the body's thread after a body step (LocalModelBuilder: one force evaluation, an
+// assembly and a numeric factorisation, which allocates inside CHOLMOD, and 3 |R| solves; or,
+// between factorisations, W from the last factor with the contact Jacobian it held); solved
 // on the 1 kHz thread (haptic_contact: no allocation, the region's capacity fixed at load).
 // Probes with the node contact law (ContactModel::kNodes) only.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -57,17 +59,43 @@ class LocalModelBuilder {
   explicit LocalModelBuilder(const Model& m);
   ~LocalModelBuilder();
   // After a body step at h = m's substep: the implicit system at state s (forces with the
-  // Jacobian, coefficients, element terms), factored, and W for the region of probe k (the nodes
-  // within reach: the probe radius plus `margin`, the closest first if more than the capacity).
-  // False when the system is not positive definite (out->valid false). With kFactorCG the fresh
-  // factor becomes ws's current one (the next step's preconditioner).
-  bool build(const Model& m, State& s, Workspace& ws, int k, double margin, LocalModel* out);
+  // Jacobian, coefficients, element terms), factored; the probes' contact Jacobians it holds are
+  // kept for build(). False when the system is not positive definite (no factor until the next
+  // success). With kFactorCG the fresh factor becomes ws's current one (the next step's
+  // preconditioner).
+  bool refactor(const Model& m, State& s, Workspace& ws);
+  // Probe k's local model at state s from the last factor: the region (the nodes within the
+  // probe radius plus `margin`, the closest if more than the capacity), their positions and probe
+  // forces at s, and W = h^2 A^-1 over them with the contact Jacobian A held (B0), so that (1)
+  // stays consistent when the factor is some body steps older than s. W is solved anew only when
+  // the factor or the region changed since probe k's last model. False without a factor.
+  bool build(const Model& m, const State& s, Workspace& ws, int k, double margin, LocalModel* out);
+  bool factored() const { return generation_ > 0; }
+  std::uint64_t factorizations() const { return generation_; }
+  std::uint64_t region_solves() const { return solves_; }  // W solved (not reused)
 
  private:
+  struct Region {  // probe k's last W (the factor generation it came from)
+    std::uint64_t generation = 0;
+    int num = 0;
+    std::vector<int> nodes;
+    std::vector<double> w;  // (3 num)^2, leading dimension 3 num
+  };
+  SystemFactor* last(Workspace& ws);
   std::unique_ptr<SystemFactor> factor_;
   std::vector<double> r_, z_;
   std::vector<std::pair<double, int>> near_;
+  std::vector<std::vector<Mat3>> held_;  // (probes x nodes) N/m: B0 of the factored system
+  std::vector<Region> regions_;          // (probes)
+  std::uint64_t generation_ = 0, solves_ = 0;
 };
+
+// Whether the body's system is factored anew after a body step (loop/body_worker.h): when no
+// factor is in hand, every refactor_every body steps (> 0), when CG took more than
+// refactor_iterations per Newton iteration with the factor in hand, or after a rollback (`served`:
+// the served model's options; body_model's own turn its factorisations off).
+bool refactor_due(const SolverOptions& served, bool factored, int steps_since, double cg_per_newton,
+                  bool rolled_back);
 
 // Until a body step has built a local model around the probe (the probe just arrived, or moved
 // beyond the last model's reach), an estimate: the region around `center` at positions x, each

@@ -416,6 +416,9 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   if (s.has_newton_iterations()) o.newton_iterations = s.newton_iterations();
   if (s.has_cg_iterations()) o.cg_iterations = s.cg_iterations();
   if (s.has_cg_tolerance()) o.cg_tolerance = s.cg_tolerance();
+  o.newton_tolerance = s.newton_tolerance();
+  if (!(o.newton_tolerance >= 0) || !std::isfinite(o.newton_tolerance))
+    return Error{swhere + "newton_tolerance must be a finite length >= 0 (m)"};
   if (s.linear_solver() == v1::FACTOR_CG) {
     if (o.integrator != Integrator::kImplicitEuler)
       return Error{swhere + "linear_solver FACTOR_CG needs integrator IMPLICIT_EULER"};

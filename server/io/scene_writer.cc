@@ -113,6 +113,7 @@ void set_solver(const SolverOptions& o, v1::Solver* out) {
   out->set_newton_iterations(o.newton_iterations);
   out->set_cg_iterations(o.cg_iterations);
   out->set_cg_tolerance(o.cg_tolerance);
+  out->set_newton_tolerance(o.newton_tolerance);
   if (o.linear_solver == LinearSolver::kFactorCG) {
     out->set_linear_solver(v1::FACTOR_CG);
     out->set_refactor_every(o.refactor_every);

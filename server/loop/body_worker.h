@@ -5,11 +5,15 @@
 // Every `every` ticks the tick hands the probes' poses to the body thread (if it is idle), which
 // steps the body once by every / rate seconds with the probes there (implicit Euler), builds each
 // active probe's local model and hands back the model and the node positions through a second
-// buffer. The tick swaps in a finished step at its start and never waits: a body thread that falls
-// behind leaves the tick on the last local model (late_ticks counts the ticks a step was due but
-// the thread was still busy). A probe farther from where the body step saw it than the local
-// model's reach, or one with no local model yet, is answered by the node law against the body's
-// last positions with each node behind its own share of the tissue (estimate_local_model).
+// buffer. The body's system is factored anew after a step when the served model's
+// refactor_every body steps have passed, when CG took more than its refactor_iterations per
+// Newton iteration with the factor in hand, or after a rollback; in between the local models
+// come from the factor in hand (which also preconditions the steps). The tick swaps in a finished
+// step at its start and never waits: a body thread that falls behind leaves the tick on the last
+// local model (late_ticks counts the ticks a step was due but the thread was still busy). A probe
+// farther from where the body step saw it than the local model's reach, or one with no local model
+// yet, is answered by the node law against the body's last positions with each node behind its own
+// share of the tissue (estimate_local_model).
 #pragma once
 
 #include <atomic>
@@ -45,6 +49,9 @@ class BodyWorker {
   std::uint64_t body_steps() const { return body_steps_; }  // swapped in
   std::uint64_t late_ticks() const { return late_ticks_; }
   std::uint64_t frozen_answers() const { return frozen_; }  // answered by the estimate
+  // The body thread's factorisations and W solves so far (relaxed reads; for statistics).
+  std::uint64_t factorizations() const { return factorizations_.load(std::memory_order_relaxed); }
+  std::uint64_t region_solves() const { return region_solves_.load(std::memory_order_relaxed); }
   // The body thread's last step plus local models, ns (relaxed; for statistics).
   std::int64_t last_body_ns() const { return body_ns_.load(std::memory_order_relaxed); }
 
@@ -63,7 +70,9 @@ class BodyWorker {
   Workspace ws_;
   LocalModelBuilder builder_;
   int every_ = 1;
-  double reach_ = 0;  // m, the region's margin beyond the probe radius
+  SolverOptions served_options_;  // refactor_every (body steps), refactor_iterations
+  int since_factor_ = 0;          // body steps since the last factor
+  double reach_ = 0;              // m, the region's margin beyond the probe radius
   Snapshot snap_[2];
   LocalModel estimate_;                       // until a body step's model covers the probe
   std::vector<std::pair<double, int>> near_;  // (nodes) the estimate's scratch
@@ -71,6 +80,7 @@ class BodyWorker {
   std::vector<ProbeState> input_;  // the poses of the next body step
   std::atomic<int> state_{kIdle};
   std::atomic<std::int64_t> body_ns_{0};
+  std::atomic<std::uint64_t> factorizations_{0}, region_solves_{0};
   int since_ = 0;
   std::uint64_t body_steps_ = 0, late_ticks_ = 0, frozen_ = 0;
   std::thread thread_;

@@ -54,7 +54,7 @@ std::string prepare_scene(const BodySpec& spec, const PrepareOptions& opt, Scene
     for (int k = 0; k < n; ++k) {
       const TimeNs t0 = clock.now_ns();
       step(b, s, ws);
-      if (!b.probes.empty()) builder.build(b, s, ws, 0, 0, &lm);
+      if (!b.probes.empty() && builder.refactor(b, s, ws)) builder.build(b, s, ws, 0, 0, &lm);
       cost[k] = static_cast<double>(clock.now_ns() - t0) * 1e-3;
     }
     std::nth_element(cost.begin(), cost.begin() + n / 2, cost.end());

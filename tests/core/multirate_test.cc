@@ -70,7 +70,7 @@ Vec3 FullStep(const Model& m, const State& from, const Vec3& c) {
 // The block pressed 2 mm at its centre, at rest, and the local model its last step leaves.
 struct PressedBlock {
   explicit PressedBlock(bool tets) : m(Block(tets)), ws(m), s(Pressed(m, ws, 2e-3)), builder(m) {
-    built = builder.build(m, s, ws, 0, 0.5 * kRadius, &lm);
+    built = builder.refactor(m, s, ws) && builder.build(m, s, ws, 0, 0.5 * kRadius, &lm);
   }
   Model m;
   Workspace ws;

@@ -9,7 +9,9 @@
 
 #include <Eigen/Dense>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <new>
 #include <random>
 #include <thread>
@@ -261,6 +263,85 @@ TEST(SparseFactorWorkerTest, StepAllocatesNothingWhileAWorkerFactors) {
   EXPECT_GE(s.counters.factorizations, 2u);
   EXPECT_EQ(s.counters.factor_failures, 0u);
   EXPECT_EQ(s.counters.rollbacks, 0u);
+}
+
+// newton_tolerance turns the Newton budget into a cap: the step stops once an update moves no
+// node farther than the tolerance, and lands where the whole budget lands, within it.
+TEST_P(SparseSystemTest, NewtonToleranceStopsAtTheConvergedStep) {
+  const Model base = Block(GetParam());
+  const State pressed = Pressed(base);
+  auto step_with = [&](int newton, double tol, std::uint64_t* iterations) {
+    Model m = base;
+    m.options.newton_iterations = newton;
+    m.options.newton_tolerance = tol;
+    m.options.cg_iterations = 400;
+    m.options.cg_tolerance = 1e-12;
+    State s = pressed;
+    Workspace ws(m);
+    Press(s, 3.4e-3);  // 0.4 mm deeper than the pressed state
+    const std::uint64_t n0 = s.counters.newton_iterations;
+    step(m, s, ws);
+    *iterations = s.counters.newton_iterations - n0;
+    return s;
+  };
+  std::uint64_t n_full = 0, n_tol = 0, n_one = 0;
+  const State full = step_with(10, 0, &n_full);
+  const State early = step_with(10, 1e-8, &n_tol);
+  const State one = step_with(1, 0, &n_one);
+  EXPECT_EQ(n_full, 10u);
+  EXPECT_EQ(n_one, 1u);
+  EXPECT_GE(n_tol, 2u);
+  EXPECT_LT(n_tol, 10u);
+  double d_early = 0, d_one = 0;
+  for (int i = 0; i < base.num_nodes(); ++i) {
+    d_early = std::max(d_early, (early.x[i] - full.x[i]).norm());
+    d_one = std::max(d_one, (one.x[i] - full.x[i]).norm());
+  }
+  std::printf(
+      "Newton iterations %llu of 10; largest node distance to the full budget %.3g m "
+      "(one iteration: %.3g m)\n",
+      static_cast<unsigned long long>(n_tol), d_early, d_one);
+  EXPECT_LT(d_early, 1e-8);
+  EXPECT_GT(d_one, 10 * 1e-8);  // the comparison can tell an unconverged step
+}
+
+int ThreadsOfThisProcess() {
+  int n = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/task")) ++n;
+  return n;
+}
+
+// The supernodal factorisation of a body the size of the phantom (10 x 10 x 6 hexahedra, 847
+// nodes: supernodes large enough for CHOLMOD's OpenMP teams) runs on the calling thread alone: no
+// thread is started to compete with the 1 kHz loop, and the factor still solves the system.
+TEST(SupernodalFactorTest, FactorisesOnTheCallingThreadAlone) {
+  BodySpec b = testing_meshes::Ef30Block(false);
+  b.mesh = make_box_lattice(Vec3(0.05, 0.05, 0.03), {10, 10, 6});
+  FixedSelector base;
+  base.kind = FixedSelector::Kind::kPlane;
+  b.fixed.push_back(base);
+  b.options.integrator = Integrator::kImplicitEuler;
+  b.options.linear_solver = LinearSolver::kFactorCG;
+  b.options.dt = 0.01;
+  Model m;
+  ASSERT_EQ(build_model(b, &m), "");
+  State s = make_state(m);
+  Workspace ws(m);
+  const int before = ThreadsOfThisProcess();
+  SystemFactor f(m, SystemFactor::Kind::kSupernodal);
+  detail::prepare_system_at(m, s, ws, m.options.dt);
+  f.assemble(m, ws);
+  ASSERT_TRUE(f.factorize());
+  ASSERT_TRUE(f.supernodal());
+  EXPECT_EQ(ThreadsOfThisProcess(), before);
+  // A x = r solved: the factor is the system's.
+  const std::vector<double> r = Random(m, 7);
+  std::vector<double> z(r.size()), y(r.size());
+  f.solve(r.data(), z.data());
+  f.multiply(z.data(), y.data());
+  double e = 0;
+  for (size_t k = 0; k < r.size(); ++k) e = std::max(e, std::abs(y[k] - r[k]));
+  EXPECT_LT(e, 1e-9 * MaxAbs(r));
 }
 
 INSTANTIATE_TEST_SUITE_P(HexahedraTetrahedra, SparseSystemTest, ::testing::Bool(),

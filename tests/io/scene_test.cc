@@ -250,9 +250,12 @@ TEST(SceneTest, MultiRateServingIsReadAndChecked) {
   auto with = [](const std::string& solver) {
     return std::string(kGood) + "probe { radius: 0.004 }\nsolver { " + solver + " }\n";
   };
-  auto ok = parse_scene(with("integrator: IMPLICIT_EULER body_rate_hz: 50 body_reach: 0.002"),
+  auto ok = parse_scene(with("integrator: IMPLICIT_EULER body_rate_hz: 50 body_reach: 0.002 "
+                             "newton_tolerance: 1e-6 refactor_every: 10"),
                         "s.pbtxt", kConfigs);
   ASSERT_TRUE(ok) << ok.error();
+  EXPECT_EQ(ok.value().spec.options.newton_tolerance, 1e-6);
+  EXPECT_EQ(ok.value().spec.options.refactor_every, 10);
   EXPECT_EQ(ok.value().spec.options.body_rate_hz, 50);
   EXPECT_EQ(ok.value().spec.options.body_reach, 0.002);
   const std::pair<const char*, const char*> bad[] = {
@@ -261,6 +264,8 @@ TEST(SceneTest, MultiRateServingIsReadAndChecked) {
       {"integrator: IMPLICIT_EULER body_rate_hz: -1", "body_rate_hz must be in [0, rate_hz]"},
       {"integrator: IMPLICIT_EULER body_rate_hz: nan", "body_rate_hz must be in [0, rate_hz]"},
       {"integrator: IMPLICIT_EULER body_reach: -1e-3", "body_reach >= 0"},
+      {"integrator: IMPLICIT_EULER newton_tolerance: -1e-6", "newton_tolerance must be"},
+      {"integrator: IMPLICIT_EULER newton_tolerance: inf", "newton_tolerance must be"},
   };
   for (const auto& [solver, why] : bad) {
     const std::string e = ErrorOf(with(solver));

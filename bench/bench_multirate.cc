@@ -1,0 +1,235 @@
+// The multi-rate body's cost (solver body_rate_hz, core/multirate.h) as the body thread runs it
+// (loop/body_worker.cc): per body step, the step itself (implicit Euler at 1 / body_rate_hz), the
+// factorisation of the body's system when the refactoring policy asks for one (refactor_due) and
+// the local model the 1 kHz ticks answer from; and the body-step force against every step
+// converged. Medians, p90 and maxima of wall and thread CPU time, measured in one run.
+//   build/bin/bench_multirate [--depth M] [--up x|y|z] [--steps N] [--body-rate HZ]
+//                             [--newton N] [--newton-tolerance M] [--cg-tolerance T] [--refactor-every N] [--refactor-iterations N]
+//                             SCENE
+// The probe touches the node highest along `up` (the middle one of a flat top) and is pressed
+// `depth` over the first half of the steps, then held.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <string>
+#include <vector>
+
+#include "core/body.h"
+#include "core/multirate.h"
+#include "core/sparse_system.h"
+#include "core/step.h"
+#include "io/scene.h"
+
+namespace {
+
+using namespace conica;
+
+double ThreadCpuUs() {
+  timespec t;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return 1e6 * t.tv_sec + 1e-3 * t.tv_nsec;
+}
+
+struct Timer {
+  std::vector<double> wall_us, cpu_us;
+  std::chrono::steady_clock::time_point t0;
+  double c0 = 0;
+  void start() {
+    c0 = ThreadCpuUs();
+    t0 = std::chrono::steady_clock::now();
+  }
+  void stop() {
+    const auto t1 = std::chrono::steady_clock::now();
+    cpu_us.push_back(ThreadCpuUs() - c0);
+    wall_us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+  }
+};
+
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
+}
+
+void Row(const char* name, const Timer& t) {
+  std::printf("| %s | %.2f | %.2f | %.2f | %.2f | %.2f |\n", name,
+              1e-3 * Percentile(t.cpu_us, 0.5), 1e-3 * Percentile(t.cpu_us, 0.9),
+              1e-3 * Percentile(t.cpu_us, 1.0), 1e-3 * Percentile(t.wall_us, 0.5),
+              1e-3 * Percentile(t.wall_us, 1.0));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  double depth = 0.004;
+  double body_rate = 0, cg_tolerance = 0, newton_tolerance = -1;  // the scene's unless given
+  int refactor_every = -1, refactor_iterations = -1, newton = 0;
+  int up = 2, steps = 40;
+  std::string path;
+  for (int a = 1; a < argc; ++a) {
+    const std::string o = argv[a];
+    if (o == "--depth" && a + 1 < argc)
+      depth = std::atof(argv[++a]);
+    else if (o == "--up" && a + 1 < argc)
+      up = argv[++a][0] - 'x';
+    else if (o == "--body-rate" && a + 1 < argc)
+      body_rate = std::atof(argv[++a]);
+    else if (o == "--newton" && a + 1 < argc)
+      newton = std::atoi(argv[++a]);
+    else if (o == "--newton-tolerance" && a + 1 < argc)
+      newton_tolerance = std::atof(argv[++a]);
+    else if (o == "--cg-tolerance" && a + 1 < argc)
+      cg_tolerance = std::atof(argv[++a]);
+    else if (o == "--refactor-every" && a + 1 < argc)
+      refactor_every = std::atoi(argv[++a]);
+    else if (o == "--refactor-iterations" && a + 1 < argc)
+      refactor_iterations = std::atoi(argv[++a]);
+    else if (o == "--steps" && a + 1 < argc)
+      steps = std::max(2, std::atoi(argv[++a]));
+    else
+      path = o;
+  }
+  BodySpec spec;
+  if (std::string e = io::load_scene(path, &spec); !e.empty()) {
+    std::fprintf(stderr, "%s\n", e.c_str());
+    return 2;
+  }
+  Model served;
+  if (std::string e = build_model(spec, &served); !e.empty() || served.probes.empty()) {
+    std::fprintf(stderr, "%s\n", e.empty() ? "the scene has no probe" : e.c_str());
+    return 2;
+  }
+  if (body_rate > 0) served.options.body_rate_hz = body_rate;
+  if (cg_tolerance > 0) served.options.cg_tolerance = cg_tolerance;
+  if (newton > 0) served.options.newton_iterations = newton;
+  if (newton_tolerance >= 0) served.options.newton_tolerance = newton_tolerance;
+  if (refactor_every >= 0) served.options.refactor_every = refactor_every;
+  if (refactor_iterations >= 0) served.options.refactor_iterations = refactor_iterations;
+  if (!(served.options.body_rate_hz > 0)) {
+    std::fprintf(stderr, "%s: not multi-rate (solver body_rate_hz)\n", path.c_str());
+    return 2;
+  }
+  const Model body = body_model(served);
+  // The highest node along `up`, nearest the middle of the nodes that high (a flat top's centre).
+  double high = -1e300;
+  for (int i = 0; i < body.num_nodes(); ++i) high = std::max(high, body.rest[i][up]);
+  Vec3 mid = Vec3::Zero();
+  int count = 0;
+  for (int i = 0; i < body.num_nodes(); ++i)
+    if (body.rest[i][up] > high - 1e-9) mid += body.rest[i], ++count;
+  mid /= count;
+  int top = -1;
+  for (int i = 0; i < body.num_nodes(); ++i)
+    if (body.rest[i][up] > high - 1e-9 &&
+        (top < 0 || (body.rest[i] - mid).norm() < (body.rest[top] - mid).norm()))
+      top = i;
+  const double r = served.probes[0].radius;
+  const double reach = served.options.body_reach > 0 ? served.options.body_reach : 0.5 * r;
+  auto probe_at = [&](int k) {
+    Vec3 c = body.rest[top];
+    c[up] += r - depth * std::min(1.0, (k + 1.0) / (steps / 2));
+    return c;
+  };
+
+  // The body worker's loop (loop/body_worker.cc) with its refactoring policy, timed part by part.
+  struct Run {
+    Timer step, refactor, build, total;
+    std::vector<Vec3> force;
+    double cg = 0, newton = 0;
+    int factorizations = 0;
+    long long factor_nonzeros = 0;
+    bool supernodal = false;
+  };
+  auto simulate = [&](const SolverOptions& policy, const Model& b) {
+    Run run;
+    State s = make_state(b);
+    Workspace ws(b);
+    prime_workspace(ws);
+    LocalModelBuilder builder(b);
+    LocalModel lm;
+    int since = 0;
+    for (int k = 0; k < steps; ++k) {
+      set_probe(s, 0, probe_at(k), true);
+      const std::uint64_t cg0 = s.counters.cg_iterations, rb0 = s.counters.rollbacks;
+      const std::uint64_t nw0 = s.counters.newton_iterations;
+      run.total.start();
+      run.step.start();
+      step(b, s, ws);
+      run.step.stop();
+      const std::uint64_t newton = std::max<std::uint64_t>(1, s.counters.newton_iterations - nw0);
+      const double cg = static_cast<double>(s.counters.cg_iterations - cg0) / newton;
+      run.cg += cg;
+      run.newton += static_cast<double>(newton);
+      if (refactor_due(policy, builder.factored(), ++since, cg, s.counters.rollbacks != rb0)) {
+        run.refactor.start();
+        builder.refactor(b, s, ws);
+        run.refactor.stop();
+        since = 0;
+        ++run.factorizations;
+      }
+      run.build.start();
+      builder.build(b, s, ws, 0, reach, &lm);
+      run.build.stop();
+      run.total.stop();
+      run.force.push_back(s.probes[0].force);
+    }
+    run.cg /= steps;
+    run.newton /= steps;
+    if (ws.factor) {
+      run.factor_nonzeros = ws.factor->current->factor_nonzeros();
+      run.supernodal = ws.factor->current->supernodal();
+    }
+    return run;
+  };
+  // The reference: every body step converged (4 Newton iterations, CG to 1e-12, a fresh factor).
+  Model ref_body = body;
+  ref_body.options.newton_iterations = 4;
+  ref_body.options.cg_iterations = 400;
+  ref_body.options.cg_tolerance = 1e-12;
+  SolverOptions every_step = served.options;
+  every_step.refactor_every = 1;
+  const Run ref = simulate(every_step, ref_body);
+  const Run run = simulate(served.options, body);
+
+  double e2 = 0, f2 = 0, worst = 0, peak = 0;
+  for (const Vec3& f : ref.force) peak = std::max(peak, f.norm());
+  for (size_t k = 0; k < ref.force.size(); ++k) {
+    if (ref.force[k].norm() < 0.05 * peak) continue;
+    const double e = (run.force[k] - ref.force[k]).norm();
+    e2 += e * e;
+    f2 += ref.force[k].squaredNorm();
+    worst = std::max(worst, e / ref.force[k].norm());
+  }
+  std::printf(
+      "%s: %d nodes, %zu tetrahedra, %zu hexahedra; body step %.0f ms (%d ticks), %d x %d (Newton to %g m), CG "
+      "to %g; refactor_every %d, refactor_iterations %d; L %lld nonzeros (%s); press %.1f mm over "
+      "%d steps, then held\n",
+      path.c_str(), body.num_nodes(), body.tetrahedra.size(), body.hexahedra.size(),
+      1e3 * body.options.dt, ticks_per_body_step(served), body.options.newton_iterations,
+      body.options.cg_iterations, body.options.newton_tolerance, body.options.cg_tolerance, served.options.refactor_every,
+      served.options.refactor_iterations, run.factor_nonzeros,
+      run.supernodal ? "supernodal" : "simplicial", 1e3 * depth, steps / 2);
+  std::printf(
+      "factorisations %d of %d steps; Newton iterations per step %.2f, CG iterations per Newton "
+      "iteration %.1f; force at the end "
+      "%.4f N (converged %.4f N); body-step force against converged steps: RMS %.3f %%, largest "
+      "%.3f %%\n",
+      run.factorizations, steps, run.newton, run.cg, run.force.back().norm(), ref.force.back().norm(),
+      100 * std::sqrt(e2 / std::max(f2, 1e-300)), 100 * worst);
+  std::printf(
+      "| part | CPU p50 (ms) | CPU p90 | CPU max | wall p50 | wall max |\n"
+      "|---|---:|---:|---:|---:|---:|\n");
+  Row("body step", run.step);
+  Row("factorisation (when due)", run.refactor);
+  Row("local model from the factor", run.build);
+  Row("all, per body step", run.total);
+  Row("converged reference, per body step", ref.total);
+  if (std::getenv("BENCH_FORCES"))
+    for (size_t k = 0; k < ref.force.size(); ++k)
+      std::printf("step %zu: %.4f N (converged %.4f N)\n", k, run.force[k].norm(),
+                  ref.force[k].norm());
+  return 0;
+}
