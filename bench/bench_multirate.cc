@@ -2,10 +2,13 @@
 // (loop/body_worker.cc): per body step, the step itself (implicit Euler at 1 / body_rate_hz), the
 // factorisation of the body's system when the refactoring policy asks for one (refactor_due) and
 // the local model the 1 kHz ticks answer from; and the body-step force against every step
-// converged. Medians, p90 and maxima of wall and thread CPU time, measured in one run.
+// converged. Medians, p90 and maxima of wall and thread CPU time, measured in one run. With
+// --per-tick instead: the per-tick force served at 1 kHz against the body solved every tick
+// (PerTick below).
 //   build/bin/bench_multirate [--depth M] [--up x|y|z] [--steps N] [--body-rate HZ]
-//                             [--newton N] [--newton-tolerance M] [--cg-tolerance T] [--refactor-every N] [--refactor-iterations N]
-//                             SCENE
+//                             [--newton N] [--newton-tolerance M] [--cg-tolerance T]
+//                             [--refactor-every N] [--refactor-iterations N]
+//                             [--per-tick] SCENE
 // The probe touches the node highest along `up` (the middle one of a flat top) and is pressed
 // `depth` over the first half of the steps, then held.
 #include <algorithm>
@@ -15,6 +18,7 @@
 #include <cstdlib>
 #include <ctime>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "core/body.h"
@@ -22,6 +26,7 @@
 #include "core/sparse_system.h"
 #include "core/step.h"
 #include "io/scene.h"
+#include "loop/body_worker.h"
 
 namespace {
 
@@ -55,10 +60,85 @@ double Percentile(std::vector<double> v, double q) {
 }
 
 void Row(const char* name, const Timer& t) {
-  std::printf("| %s | %.2f | %.2f | %.2f | %.2f | %.2f |\n", name,
-              1e-3 * Percentile(t.cpu_us, 0.5), 1e-3 * Percentile(t.cpu_us, 0.9),
-              1e-3 * Percentile(t.cpu_us, 1.0), 1e-3 * Percentile(t.wall_us, 0.5),
-              1e-3 * Percentile(t.wall_us, 1.0));
+  std::printf("| %s | %.2f | %.2f | %.2f | %.2f | %.2f |\n", name, 1e-3 * Percentile(t.cpu_us, 0.5),
+              1e-3 * Percentile(t.cpu_us, 0.9), 1e-3 * Percentile(t.cpu_us, 1.0),
+              1e-3 * Percentile(t.wall_us, 0.5), 1e-3 * Percentile(t.wall_us, 1.0));
+}
+
+// --per-tick: the served model at 1 kHz through the body thread (loop/body_worker.h, waited for
+// after each hand-over so that the run is the same on any machine) along a press (from 1 mm
+// above the top to `depth` at 10 mm/s), a 0.2 s hold, a 5 mm slide at 10 mm/s and a 0.2 s hold,
+// against the same body stepped every tick with a converged Newton iteration (4 iterations, CG to
+// 1e-10): the per-tick force's RMS and largest relative error (over the ticks above a fifth of
+// the largest force).
+int PerTick(const Model& served, const Vec3& top, int up, double depth) {
+  const int side = (up + 1) % 3;
+  const double r = served.probes[0].radius;
+  const double t_press = (depth + 1e-3) / 0.01, t_slide = t_press + 0.2;
+  const int ticks = static_cast<int>(std::lround((t_slide + 0.5 + 0.2) / served.options.dt));
+  auto path = [&](int tick) {
+    const double t = (tick + 1) * served.options.dt;
+    Vec3 c = top;
+    c[up] += r + 1e-3 - (depth + 1e-3) * std::min(1.0, t / t_press);
+    c[side] += 5e-3 * std::clamp((t - t_slide) / 0.5, 0.0, 1.0);
+    return c;
+  };
+  Model ref = served;  // the node penalty stays the served one
+  ref.options.body_rate_hz = 0;
+  ref.options.newton_iterations = 4;
+  ref.options.newton_tolerance = 0;
+  ref.options.cg_iterations = 400;
+  ref.options.cg_tolerance = 1e-10;
+  std::vector<Vec3> ref_force(ticks);
+  Timer t_ref;
+  {
+    State s = make_state(ref);
+    Workspace ws(ref);
+    for (int t = 0; t < ticks; ++t) {
+      set_probe(s, 0, path(t));
+      t_ref.start();
+      step(ref, s, ws);
+      t_ref.stop();
+      ProbeState p = s.probes[0];
+      probe_contact(ref, s.x, 0, path(t), r, &p);
+      ref_force[t] = p.force;
+    }
+  }
+  std::vector<Vec3> force(ticks);
+  State s = make_state(served);
+  loop::BodyWorker worker(served, s);
+  for (int t = 0; t < ticks; ++t) {
+    set_probe(s, 0, path(t));
+    worker.tick(served, s);
+    while (worker.stepping()) std::this_thread::sleep_for(std::chrono::microseconds(50));
+    force[t] = s.probes[0].force;
+  }
+  double fmax = 0, e2 = 0, f2 = 0, worst = 0;
+  for (const Vec3& f : ref_force) fmax = std::max(fmax, f.norm());
+  for (int t = 0; t < ticks; ++t) {
+    if (ref_force[t].norm() < 0.2 * fmax) continue;
+    const double e = (force[t] - ref_force[t]).norm();
+    e2 += e * e;
+    f2 += ref_force[t].squaredNorm();
+    worst = std::max(worst, e / ref_force[t].norm());
+  }
+  std::printf(
+      "per tick, press %.1f mm / hold / slide 5 mm / hold (%d ticks): largest force %.4f N; "
+      "served against converged every tick: RMS %.3f %%, largest %.3f %%; %llu body steps, "
+      "%llu factorisations, %llu estimated answers; converged step p50 %.1f ms\n",
+      1e3 * depth, ticks, fmax, 100 * std::sqrt(e2 / std::max(f2, 1e-300)), 100 * worst,
+      static_cast<unsigned long long>(worker.body_steps()),
+      static_cast<unsigned long long>(worker.factorizations()),
+      static_cast<unsigned long long>(worker.frozen_answers()),
+      1e-3 * Percentile(t_ref.wall_us, 0.5));
+  if (std::getenv("BENCH_FORCES"))
+    for (int t = 0; t < ticks; ++t)
+      if (t % 20 == 0 || (t >= 1100 && t < 1135) ||
+          (ref_force[t].norm() > 0.2 * fmax &&
+           (force[t] - ref_force[t]).norm() > 0.05 * ref_force[t].norm()))
+        std::printf("tick %d: %.4f N (converged %.4f N)\n", t, force[t].norm(),
+                    ref_force[t].norm());
+  return 0;
 }
 
 }  // namespace
@@ -67,6 +147,7 @@ int main(int argc, char** argv) {
   double depth = 0.004;
   double body_rate = 0, cg_tolerance = 0, newton_tolerance = -1;  // the scene's unless given
   int refactor_every = -1, refactor_iterations = -1, newton = 0;
+  bool per_tick = false;
   int up = 2, steps = 40;
   std::string path;
   for (int a = 1; a < argc; ++a) {
@@ -77,6 +158,8 @@ int main(int argc, char** argv) {
       up = argv[++a][0] - 'x';
     else if (o == "--body-rate" && a + 1 < argc)
       body_rate = std::atof(argv[++a]);
+    else if (o == "--per-tick")
+      per_tick = true;
     else if (o == "--newton" && a + 1 < argc)
       newton = std::atoi(argv[++a]);
     else if (o == "--newton-tolerance" && a + 1 < argc)
@@ -126,6 +209,7 @@ int main(int argc, char** argv) {
     if (body.rest[i][up] > high - 1e-9 &&
         (top < 0 || (body.rest[i] - mid).norm() < (body.rest[top] - mid).norm()))
       top = i;
+  if (per_tick) return PerTick(served, body.rest[top], up, depth);
   const double r = served.probes[0].radius;
   const double reach = served.options.body_reach > 0 ? served.options.body_reach : 0.5 * r;
   auto probe_at = [&](int k) {
@@ -136,7 +220,7 @@ int main(int argc, char** argv) {
 
   // The body worker's loop (loop/body_worker.cc) with its refactoring policy, timed part by part.
   struct Run {
-    Timer step, refactor, build, total;
+    Timer step, build, total;
     std::vector<Vec3> force;
     double cg = 0, newton = 0;
     int factorizations = 0;
@@ -153,23 +237,16 @@ int main(int argc, char** argv) {
     int since = 0;
     for (int k = 0; k < steps; ++k) {
       set_probe(s, 0, probe_at(k), true);
-      const std::uint64_t cg0 = s.counters.cg_iterations, rb0 = s.counters.rollbacks;
-      const std::uint64_t nw0 = s.counters.newton_iterations;
+      const Counters c0 = s.counters;
       run.total.start();
       run.step.start();
-      step(b, s, ws);
+      const bool factored = step_body(b, policy, s, ws, builder, &since);
       run.step.stop();
-      const std::uint64_t newton = std::max<std::uint64_t>(1, s.counters.newton_iterations - nw0);
-      const double cg = static_cast<double>(s.counters.cg_iterations - cg0) / newton;
-      run.cg += cg;
+      const std::uint64_t newton =
+          std::max<std::uint64_t>(1, s.counters.newton_iterations - c0.newton_iterations);
+      run.cg += static_cast<double>(s.counters.cg_iterations - c0.cg_iterations) / newton;
       run.newton += static_cast<double>(newton);
-      if (refactor_due(policy, builder.factored(), ++since, cg, s.counters.rollbacks != rb0)) {
-        run.refactor.start();
-        builder.refactor(b, s, ws);
-        run.refactor.stop();
-        since = 0;
-        ++run.factorizations;
-      }
+      run.factorizations += factored;
       run.build.start();
       builder.build(b, s, ws, 0, reach, &lm);
       run.build.stop();
@@ -204,26 +281,26 @@ int main(int argc, char** argv) {
     worst = std::max(worst, e / ref.force[k].norm());
   }
   std::printf(
-      "%s: %d nodes, %zu tetrahedra, %zu hexahedra; body step %.0f ms (%d ticks), %d x %d (Newton to %g m), CG "
+      "%s: %d nodes, %zu tetrahedra, %zu hexahedra; body step %.0f ms (%d ticks), %d x %d (Newton "
+      "to %g m), CG "
       "to %g; refactor_every %d, refactor_iterations %d; L %lld nonzeros (%s); press %.1f mm over "
       "%d steps, then held\n",
       path.c_str(), body.num_nodes(), body.tetrahedra.size(), body.hexahedra.size(),
       1e3 * body.options.dt, ticks_per_body_step(served), body.options.newton_iterations,
-      body.options.cg_iterations, body.options.newton_tolerance, body.options.cg_tolerance, served.options.refactor_every,
-      served.options.refactor_iterations, run.factor_nonzeros,
+      body.options.cg_iterations, body.options.newton_tolerance, body.options.cg_tolerance,
+      served.options.refactor_every, served.options.refactor_iterations, run.factor_nonzeros,
       run.supernodal ? "supernodal" : "simplicial", 1e3 * depth, steps / 2);
   std::printf(
       "factorisations %d of %d steps; Newton iterations per step %.2f, CG iterations per Newton "
       "iteration %.1f; force at the end "
       "%.4f N (converged %.4f N); body-step force against converged steps: RMS %.3f %%, largest "
       "%.3f %%\n",
-      run.factorizations, steps, run.newton, run.cg, run.force.back().norm(), ref.force.back().norm(),
-      100 * std::sqrt(e2 / std::max(f2, 1e-300)), 100 * worst);
+      run.factorizations, steps, run.newton, run.cg, run.force.back().norm(),
+      ref.force.back().norm(), 100 * std::sqrt(e2 / std::max(f2, 1e-300)), 100 * worst);
   std::printf(
       "| part | CPU p50 (ms) | CPU p90 | CPU max | wall p50 | wall max |\n"
       "|---|---:|---:|---:|---:|---:|\n");
-  Row("body step", run.step);
-  Row("factorisation (when due)", run.refactor);
+  Row("body step (with the factorisation when due)", run.step);
   Row("local model from the factor", run.build);
   Row("all, per body step", run.total);
   Row("converged reference, per body step", ref.total);

@@ -68,6 +68,7 @@ void choose_region(const Model& m, const std::vector<Vec3>& x, const Vec3& cente
   for (int a = 0; a < num; ++a) {
     lm->nodes[a] = (*near)[a].second;
     lm->x0[a] = x[lm->nodes[a]];
+    lm->dx[a].setZero();  // a fresh model: the next answer starts from its base state
   }
 }
 
@@ -82,6 +83,8 @@ LocalModel::LocalModel(int cap)
       w(9 * static_cast<size_t>(cap) * cap, 0.0),
       f(cap, Vec3::Zero()),
       dx(cap, Vec3::Zero()),
+      dx_last(cap, Vec3::Zero()),
+      step(cap, Vec3::Zero()),
       dfdc(cap, Mat3::Zero()),
       jac(9 * static_cast<size_t>(cap) * cap, 0.0),
       rhs(3 * static_cast<size_t>(cap), 0.0),
@@ -110,9 +113,10 @@ bool LocalModelBuilder::refactor(const Model& m, State& s, Workspace& ws) {
   if (!factor_->factorize()) {
     generation_ = 0;  // the factor in hand is unusable; so is every W from an earlier one
     for (Region& r : regions_) r.generation = 0;
+    ++failures_;
     return false;
   }
-  ++generation_;
+  generation_ = ++factorizations_;
   for (size_t k = 0; k < m.probes.size(); ++k) {  // what the contact stage put in the system
     const ProbeState& p = s.probes[k];
     const double R = probe_radius(m, static_cast<int>(k), p), kc = m.probes[k].stiffness;
@@ -208,8 +212,27 @@ void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, con
 
 bool refactor_due(const SolverOptions& o, bool factored, int steps_since, double cg_per_newton,
                   bool rolled_back) {
-  return !factored || (o.refactor_every > 0 && steps_since >= o.refactor_every) ||
-         cg_per_newton > o.refactor_iterations || rolled_back;
+  if (!factored || rolled_back) return true;
+  if (o.refactor_every > 0 && steps_since >= o.refactor_every) return true;
+  if (cg_per_newton < 0) return o.refactor_every == 0;  // no CG count to ask: every step
+  return cg_per_newton > o.refactor_iterations;
+}
+
+bool step_body(const Model& body, const SolverOptions& served, State& s, Workspace& ws,
+               LocalModelBuilder& builder, int* since_factor) {
+  const Counters c0 = s.counters;
+  step(body, s, ws);
+  // With kFactorCG the factor in hand preconditions CG, and CG's count says how well it still
+  // describes the body; block-Jacobi CG's count says nothing about it.
+  const double cg = ws.factor ? static_cast<double>(s.counters.cg_iterations - c0.cg_iterations) /
+                                    std::max<std::uint64_t>(
+                                        1, s.counters.newton_iterations - c0.newton_iterations)
+                              : -1.0;
+  if (!refactor_due(served, builder.factored(), ++*since_factor, cg,
+                    s.counters.rollbacks != c0.rollbacks))
+    return false;
+  *since_factor = 0;
+  return builder.refactor(body, s, ws);
 }
 
 int ticks_per_body_step(const Model& served) {
@@ -231,13 +254,12 @@ void prime_workspace(Workspace& ws) {
 
 void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, double radius,
                     ProbeState* probe, std::vector<Vec3>* x) {
-  constexpr int kMaxNewton = 12;
+  constexpr int kMaxNewton = 20;
   const int num = lm.num, n3 = 3 * num, ld = 3 * lm.capacity;
   const double R = radius > 0 ? radius : m.probes[k].radius, kc = m.probes[k].stiffness;
   probe->center = center;
   probe->active = true;
   if (radius > 0) probe->radius = radius;
-  for (int a = 0; a < num; ++a) lm.dx[a].setZero();
   int* act = lm.pivot.data() + 3 * lm.capacity;  // the active nodes (in contact now or at x0)
   int* piv = lm.pivot.data();
   int na = 0;
@@ -287,6 +309,8 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   };
 
   const double tol = 1e-9 * std::max(R, 1e-6);
+  for (int a = 0; a < num; ++a)  // (a non-finite start, which a failed solve could leave: 0)
+    if (!std::isfinite(lm.dx[a].squaredNorm())) lm.dx[a].setZero();
   double res = n3 > 0 ? residual() : 0;
   int it = 0;
   double* d = lm.g.data();  // the active block's step (3 na <= 3 capacity)
@@ -300,9 +324,19 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       for (int c = 0; c < 3 * na; ++c) s += wq(row, c / 3, c % 3) * d[c];
       lm.rhs[row] = s;  // the step of every row (the active ones reproduce d)
     }
-    for (int a = 0; a < num; ++a)
-      lm.dx[a] += Vec3(lm.rhs[3 * a], lm.rhs[3 * a + 1], lm.rhs[3 * a + 2]);
-    res = residual();
+    // Backtracking: the full step, or halves of it until the residual falls (the smallest tried
+    // if none does).
+    for (int a = 0; a < num; ++a) {
+      lm.dx_last[a] = lm.dx[a];
+      lm.step[a] = Vec3(lm.rhs[3 * a], lm.rhs[3 * a + 1], lm.rhs[3 * a + 2]);
+    }
+    const double res0 = res;
+    double alpha = 1;
+    for (int tries = 0; tries < 8; ++tries, alpha *= 0.5) {
+      for (int a = 0; a < num; ++a) lm.dx[a] = lm.dx_last[a] + alpha * lm.step[a];
+      res = residual();
+      if (res < res0) break;
+    }
   }
   lm.newton_iterations = it;
   lm.residual = res;

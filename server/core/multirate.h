@@ -44,8 +44,9 @@ struct LocalModel {
   std::vector<Vec3> x0, f0;     // (capacity) m, N: positions and probe forces at the body state
   std::vector<Mat3> b0;         // (capacity) N/m: the contact Jacobian the system held
   std::vector<double> w;        // (9 capacity^2) m/N: W_RR, row-major 3 capacity x 3 capacity
-  // Haptic scratch (1 kHz thread).
-  std::vector<Vec3> f, dx;
+  // Haptic state and scratch (1 kHz thread). dx: the region's displacements of the last answer,
+  // where the next one starts (zero in a fresh model).
+  std::vector<Vec3> f, dx, dx_last, step;
   std::vector<Mat3> dfdc;
   std::vector<double> jac, rhs, g;
   std::vector<int> pivot;     // (4 capacity) LU pivots, then the active nodes
@@ -71,7 +72,8 @@ class LocalModelBuilder {
   // the factor or the region changed since probe k's last model. False without a factor.
   bool build(const Model& m, const State& s, Workspace& ws, int k, double margin, LocalModel* out);
   bool factored() const { return generation_ > 0; }
-  std::uint64_t factorizations() const { return generation_; }
+  std::uint64_t factorizations() const { return factorizations_; }  // successful ones
+  std::uint64_t factor_failures() const { return failures_; }
   std::uint64_t region_solves() const { return solves_; }  // W solved (not reused)
 
  private:
@@ -87,15 +89,24 @@ class LocalModelBuilder {
   std::vector<std::pair<double, int>> near_;
   std::vector<std::vector<Mat3>> held_;  // (probes x nodes) N/m: B0 of the factored system
   std::vector<Region> regions_;          // (probes)
-  std::uint64_t generation_ = 0, solves_ = 0;
+  std::uint64_t generation_ = 0;         // W's key: 0 without a usable factor
+  std::uint64_t factorizations_ = 0, failures_ = 0, solves_ = 0;
 };
 
 // Whether the body's system is factored anew after a body step (loop/body_worker.h): when no
 // factor is in hand, every refactor_every body steps (> 0), when CG took more than
-// refactor_iterations per Newton iteration with the factor in hand, or after a rollback (`served`:
+// refactor_iterations per Newton iteration with the factor in hand as its preconditioner
+// (cg_per_newton < 0: CG is not preconditioned by it, and refactor_every 0 then means every
+// step), or after a rollback (`served`:
 // the served model's options; body_model's own turn its factorisations off).
 bool refactor_due(const SolverOptions& served, bool factored, int steps_since, double cg_per_newton,
                   bool rolled_back);
+
+// One step of the multi-rate body as its thread takes it: step() on `body` (body_model of the
+// served model), then a new factor when refactor_due says so (`served`: the served options;
+// *since_factor counts the body steps since the last). True when it factored successfully.
+bool step_body(const Model& body, const SolverOptions& served, State& s, Workspace& ws,
+               LocalModelBuilder& builder, int* since_factor);
 
 // Until a body step has built a local model around the probe (the probe just arrived, or moved
 // beyond the last model's reach), an estimate: the region around `center` at positions x, each
@@ -118,7 +129,9 @@ void prime_workspace(Workspace& ws);
 
 // The 1 kHz side: probe k of radius R at `center` against the local model; fills probe's force,
 // stiffness, contacts and the region's displaced positions x0 + dx into x (the other nodes keep
-// theirs). Allocates nothing.
+// theirs). Newton's method from the last answer's displacements, each step backtracked until the
+// residual falls (the node law switches as nodes enter and leave contact, where plain Newton can
+// cycle between the two sides). Allocates nothing.
 void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, double radius,
                     ProbeState* probe, std::vector<Vec3>* x);
 

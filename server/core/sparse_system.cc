@@ -27,14 +27,6 @@ struct SystemFactor::Cholmod {
     cholmod_start(&c);
     c.print = 0;  // the core prints nothing; failures are reported through the return value
     c.error_handler = nullptr;
-    // CHOLMOD's supernodal factorisation runs parts of each large supernode in OpenMP teams of a
-    // size fixed at its build (4 threads in Debian's). On the two cores the design counts on (the
-    // 1 kHz loop on one, the body on the other) those teams wait on each other and on the loop:
-    // the phantom's factorisation took 35 ms of wall time for 18 ms of CPU and about 3,800 futex
-    // calls per factorisation, against 7 ms without them (docs/performance.md, "Multi-rate
-    // serving"). No parallel region is made active in this process: every team is the calling
-    // thread.
-    if (&omp_set_max_active_levels != nullptr) omp_set_max_active_levels(0);
   }
   ~Cholmod() {
     for (cholmod_dense** d : {&B, &X, &Y, &E, &Bk, &Xk, &Yk, &Ek})
@@ -192,6 +184,14 @@ void SystemFactor::assemble(const Model& m, const Workspace& ws) {
 }
 
 bool SystemFactor::factorize() {
+  // CHOLMOD's supernodal factorisation runs parts of each large supernode in OpenMP teams of a
+  // size fixed at its build (4 threads in Debian's). On the two cores the design counts on (the
+  // 1 kHz loop on one, the body on the other) those teams wait on each other and on the loop:
+  // the phantom's factorisation took 35 ms of wall time for 18 ms of CPU and about 3,800 futex
+  // calls per factorisation, against 8 ms without them (docs/performance.md, "Multi-rate
+  // serving"). No parallel region of the factorising thread is made active (libgomp keeps the
+  // setting per thread): every team is that thread alone.
+  if (&omp_set_max_active_levels != nullptr) omp_set_max_active_levels(0);
   cholmod_common& cc = c_->c;
   factored_ =
       cholmod_factorize(c_->A, c_->L, &cc) && cc.status == CHOLMOD_OK && c_->L->minor == c_->L->n;

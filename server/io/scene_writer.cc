@@ -114,8 +114,8 @@ void set_solver(const SolverOptions& o, v1::Solver* out) {
   out->set_cg_iterations(o.cg_iterations);
   out->set_cg_tolerance(o.cg_tolerance);
   out->set_newton_tolerance(o.newton_tolerance);
-  if (o.linear_solver == LinearSolver::kFactorCG) {
-    out->set_linear_solver(v1::FACTOR_CG);
+  if (o.linear_solver == LinearSolver::kFactorCG) out->set_linear_solver(v1::FACTOR_CG);
+  if (o.linear_solver == LinearSolver::kFactorCG || o.body_rate_hz > 0) {  // multi-rate reads them
     out->set_refactor_every(o.refactor_every);
     out->set_refactor_iterations(o.refactor_iterations);
   }

@@ -50,17 +50,7 @@ void BodyWorker::run() {
       body_state_.probes[k].radius = input_[k].radius;
       set_probe(body_state_, static_cast<int>(k), input_[k].center, input_[k].active);
     }
-    const std::uint64_t cg0 = body_state_.counters.cg_iterations;
-    const std::uint64_t newton0 = body_state_.counters.newton_iterations;
-    const std::uint64_t rollbacks0 = body_state_.counters.rollbacks;
-    step(body_, body_state_, ws_);
-    const double cg = static_cast<double>(body_state_.counters.cg_iterations - cg0) /
-                      std::max<std::uint64_t>(1, body_state_.counters.newton_iterations - newton0);
-    if (refactor_due(served_options_, builder_.factored(), ++since_factor_, cg,
-                     body_state_.counters.rollbacks != rollbacks0)) {
-      builder_.refactor(body_, body_state_, ws_);
-      since_factor_ = 0;
-    }
+    step_body(body_, served_options_, body_state_, ws_, builder_, &since_factor_);
     Snapshot& out = snap_[back_];
     for (size_t k = 0; k < input_.size(); ++k) {
       LocalModel& lm = out.local[k];
@@ -73,6 +63,7 @@ void BodyWorker::run() {
     std::copy(body_state_.x.begin(), body_state_.x.end(), out.x.begin());
     factorizations_.store(builder_.factorizations(), std::memory_order_relaxed);
     region_solves_.store(builder_.region_solves(), std::memory_order_relaxed);
+    rollbacks_.store(body_state_.counters.rollbacks, std::memory_order_relaxed);
     body_ns_.store(
         std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0)
             .count(),

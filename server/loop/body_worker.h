@@ -52,6 +52,7 @@ class BodyWorker {
   // The body thread's factorisations and W solves so far (relaxed reads; for statistics).
   std::uint64_t factorizations() const { return factorizations_.load(std::memory_order_relaxed); }
   std::uint64_t region_solves() const { return region_solves_.load(std::memory_order_relaxed); }
+  std::uint64_t rollbacks() const { return rollbacks_.load(std::memory_order_relaxed); }
   // The body thread's last step plus local models, ns (relaxed; for statistics).
   std::int64_t last_body_ns() const { return body_ns_.load(std::memory_order_relaxed); }
 
@@ -80,7 +81,7 @@ class BodyWorker {
   std::vector<ProbeState> input_;  // the poses of the next body step
   std::atomic<int> state_{kIdle};
   std::atomic<std::int64_t> body_ns_{0};
-  std::atomic<std::uint64_t> factorizations_{0}, region_solves_{0};
+  std::atomic<std::uint64_t> factorizations_{0}, region_solves_{0}, rollbacks_{0};
   int since_ = 0;
   std::uint64_t body_steps_ = 0, late_ticks_ = 0, frozen_ = 0;
   std::thread thread_;

@@ -124,6 +124,14 @@ struct LoopStats {
   std::array<std::uint64_t, kNumErrorCodes> errors_by_code{};
   bool paused = false;
   std::uint32_t window = 0;  // ticks the percentiles describe
+  // Multi-rate serving (solver body_rate_hz, loop/body_worker.h); zero otherwise.
+  std::uint64_t body_steps = 0;       // body steps swapped in
+  std::uint64_t body_late_ticks = 0;  // ticks a body step was due while the last still ran
+  std::uint64_t body_estimates = 0;   // probe answers from the estimate (no local model in reach)
+  std::uint64_t body_factorizations = 0;  // of the body's system
+  std::uint64_t body_rollbacks = 0;       // the body's guard trips (the served state is not
+                                          // stepped: its own rollbacks stay 0)
+  double body_step_us = 0;                // the last body step with its local models
 };
 
 // ---- outgoing -----------------------------------------------------------------------------

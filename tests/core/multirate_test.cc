@@ -121,6 +121,32 @@ TEST_P(MultirateTest, MovedProbeFeelsWhatAFullBodyStepGives) {
   }
 }
 
+// A slide between body steps, answered tick by tick (each from the last answer): nodes leave and
+// enter contact under the probe, and every answer is still a converged one, with the force of a
+// full body step at the slide's end.
+TEST_P(MultirateTest, SlideAcrossContactChangesConvergesEveryAnswer) {
+  PressedBlock pb(GetParam());
+  ASSERT_TRUE(pb.built);
+  const Model& m = pb.m;
+  LocalModel& lm = pb.lm;
+  int worst_newton = 0;
+  for (int k = 0; k <= 60; ++k) {
+    const Vec3 c = Pose(2e-3 + 0.4e-3 * k / 60, 4e-3 * k / 60);
+    ProbeState hp;
+    haptic_contact(m, lm, 0, c, kRadius, &hp, nullptr);
+    ASSERT_LT(lm.residual, 1e-9 * kRadius)
+        << "answer " << k << ": " << lm.newton_iterations << " Newton iterations";
+    worst_newton = std::max(worst_newton, lm.newton_iterations);
+  }
+  const Vec3 end = Pose(2.4e-3, 4e-3);
+  const Vec3 ref = FullStep(m, pb.s, end);
+  ProbeState hp;
+  haptic_contact(m, lm, 0, end, kRadius, &hp, nullptr);
+  std::printf("slide 4 mm: largest Newton count %d; end force %.4f N, full step %.4f N\n",
+              worst_newton, hp.force.norm(), ref.norm());
+  EXPECT_LT((hp.force - ref).norm(), 0.02 * ref.norm());
+}
+
 TEST_P(MultirateTest, StiffnessIsTheForceDerivative) {
   PressedBlock pb(GetParam());
   ASSERT_TRUE(pb.built);

@@ -391,6 +391,12 @@ void ExpectSameScene(const SceneFile& a, const SceneFile& b, const std::string& 
   EXPECT_EQ(o.newton_iterations, u.newton_iterations) << where;
   EXPECT_EQ(o.cg_iterations, u.cg_iterations) << where;
   EXPECT_EQ(o.cg_tolerance, u.cg_tolerance) << where;
+  EXPECT_EQ(o.newton_tolerance, u.newton_tolerance) << where;
+  EXPECT_EQ(o.linear_solver, u.linear_solver) << where;
+  EXPECT_EQ(o.refactor_every, u.refactor_every) << where;
+  EXPECT_EQ(o.refactor_iterations, u.refactor_iterations) << where;
+  EXPECT_EQ(o.body_rate_hz, u.body_rate_hz) << where;
+  EXPECT_EQ(o.body_reach, u.body_reach) << where;
   EXPECT_EQ(o.mass_damping, u.mass_damping) << where;
   EXPECT_EQ(o.gravity, u.gravity) << where;
   EXPECT_EQ(o.min_length_fraction, u.min_length_fraction) << where;
@@ -464,8 +470,8 @@ probe { radius: 0.002 stiffness: 500 }
 plate { normal { z: -1 } offset: -0.4 stiffness: 2e4 }
 solver {
   integrator: EXPLICIT_EULER rate_hz: 2000 substeps: 3 newton_iterations: 4 cg_iterations: 25
-  cg_tolerance: 1e-6 mass_damping: 0.5 gravity { z: -9.81 } min_length_fraction: 0.1
-  max_speed: 20
+  cg_tolerance: 1e-6 newton_tolerance: 2e-6 mass_damping: 0.5 gravity { z: -9.81 }
+  min_length_fraction: 0.1 max_speed: 20
 }
 )";
   auto a = parse_scene(text, "every.pbtxt", kConfigs);

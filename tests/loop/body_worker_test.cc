@@ -129,9 +129,14 @@ TEST(BodyWorkerTest, PerTickForceFollowsTheBodySolvedEveryTick) {
 
 // The body factored only every fifth body step (and never on CG's count): the local models in
 // between come from a factor up to 80 ms of the press old, with the contact Jacobian that factor
-// held, and the per-tick force still follows the body solved every tick.
-TEST(BodyWorkerTest, AFactorSomeBodyStepsOldStillGivesTheForce) {
+// held, W is solved again only when the region changes, and the per-tick force still follows the
+// body solved every tick. With block-Jacobi CG (the builder's own factor) and with the factor as
+// CG's preconditioner (handed over to the body's workspace).
+class StaleFactorTest : public ::testing::TestWithParam<LinearSolver> {};
+
+TEST_P(StaleFactorTest, AFactorSomeBodyStepsOldStillGivesTheForce) {
   Model m = Block();
+  m.options.linear_solver = GetParam();
   m.options.refactor_every = 5;
   m.options.refactor_iterations = 1000000;
   const Served r = Serve(m);
@@ -140,7 +145,15 @@ TEST(BodyWorkerTest, AFactorSomeBodyStepsOldStillGivesTheForce) {
   EXPECT_GE(r.body_steps, static_cast<std::uint64_t>(kTicks / 20 - 1));
   EXPECT_LE(r.factorizations, r.body_steps / 5 + 1);
   EXPECT_GE(r.factorizations, r.body_steps / 5);
+  EXPECT_LT(r.region_solves, r.body_steps / 2);  // W reused while the region stays
 }
+
+INSTANTIATE_TEST_SUITE_P(Solvers, StaleFactorTest,
+                         ::testing::Values(LinearSolver::kBlockJacobiCG, LinearSolver::kFactorCG),
+                         [](const auto& info) {
+                           return info.param == LinearSolver::kFactorCG ? "factor_cg"
+                                                                        : "block_jacobi";
+                         });
 
 // The tick and the probe reply allocate nothing, with the body thread stepping beside them and
 // the probe both inside and beyond the local model's reach (the estimate).

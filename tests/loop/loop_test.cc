@@ -160,6 +160,29 @@ TEST_F(LoopTest, TicksAtTheFixedRateOnAbsoluteDeadlines) {
   EXPECT_EQ(loop_->stats().missed_ticks, 0u);
   EXPECT_EQ(loop_->stats().lateness_max_us, 0);
   EXPECT_EQ(loop_->stats().rate_hz, kRate);
+  EXPECT_EQ(loop_->stats().body_steps, 0u);
+}
+
+// A multi-rate scene's statistics carry the body thread's counters (zero for a body stepped every
+// tick, as above): its steps, factorisations and last step's cost, with the probe pressed in.
+TEST_F(LoopTest, MultiRateStatisticsCarryTheBodyThread) {
+  BodySpec spec = Small();
+  spec.options.integrator = Integrator::kImplicitEuler;
+  spec.options.linear_solver = LinearSolver::kFactorCG;
+  spec.options.body_rate_hz = kRate / 10;
+  Start({}, spec);
+  EXPECT_EQ(loop_->stats().body_steps, 0u);
+  transport_.send_probe(At(0.5), 3, Probe(1, Pressed(0.01, 0.01, 0.01, 1e-3)));
+  for (int k = 0; k < 100; ++k) {
+    ASSERT_TRUE(loop_->tick());
+    std::this_thread::sleep_for(std::chrono::microseconds(500));  // the body thread's turn
+  }
+  loop_->end();
+  const LoopStats& st = loop_->stats();
+  EXPECT_GE(st.body_steps, 3u);
+  EXPECT_LE(st.body_steps, 10u);  // one per 10 ticks at most
+  EXPECT_GE(st.body_factorizations, 1u);
+  EXPECT_GT(st.body_step_us, 0);
 }
 
 TEST_F(LoopTest, ProbeUpdateIsAnsweredAtOnceWithTheCoreForceAndStepsTheBody) {

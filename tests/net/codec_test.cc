@@ -159,6 +159,12 @@ TEST(CodecTest, BodyBoxAndStateFrame) {
   LoopStatsData stats;
   stats.ticks = 5;
   stats.errors_by_code[4] = 2;
+  stats.body_steps = 7;
+  stats.body_late_ticks = 2;
+  stats.body_estimates = 3;
+  stats.body_factorizations = 4;
+  stats.body_rollbacks = 1;
+  stats.body_step_us = 812.5;
   v1::ServerMessage msg;
   for (bool positions : {true, false, true}) {  // reuse: fields are overwritten, not appended
     encode_state(model, state, positions, stats, &msg);
@@ -171,6 +177,12 @@ TEST(CodecTest, BodyBoxAndStateFrame) {
     EXPECT_EQ(f.stats().ticks(), 5u);
     ASSERT_EQ(f.stats().errors_by_code_size(), kNumErrorCodes);
     EXPECT_EQ(f.stats().errors_by_code(4), 2u);
+    EXPECT_EQ(f.stats().body_steps(), 7u);
+    EXPECT_EQ(f.stats().body_late_ticks(), 2u);
+    EXPECT_EQ(f.stats().body_estimates(), 3u);
+    EXPECT_EQ(f.stats().body_factorizations(), 4u);
+    EXPECT_EQ(f.stats().body_rollbacks(), 1u);
+    EXPECT_EQ(f.stats().body_step_us(), 812.5);
   }
   EXPECT_FLOAT_EQ(msg.state().positions(3 * 319 + 2), 0.04f);  // last node: the top corner
 }
