@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_util.h"
 #include "core/body.h"
 #include "core/sparse_system.h"
 #include "core/step.h"
@@ -26,12 +27,8 @@
 namespace {
 
 using namespace conica;
-
-double ThreadCpuUs() {
-  timespec t;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return 1e6 * t.tv_sec + 1e-3 * t.tv_nsec;
-}
+using bench::Percentile;
+using bench::ThreadCpuUs;
 
 struct Run {
   std::vector<double> step_us;  // wall clock
@@ -78,11 +75,6 @@ Run Simulate(const Model& m, int up, double depth, bool worker) {
   run.counters = s.counters;
   run.newton = m.options.newton_iterations;
   return run;
-}
-
-double Percentile(std::vector<double> v, double q) {
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
 }
 
 void Report(const char* name, const Run& r, const Run& ref) {
@@ -144,16 +136,8 @@ int main(int argc, char** argv) {
     else
       path = o;
   }
-  BodySpec spec;
-  if (std::string e = io::load_scene(path, &spec); !e.empty()) {
-    std::fprintf(stderr, "%s\n", e.c_str());
-    return 2;
-  }
   Model m;
-  if (std::string e = build_model(spec, &m); !e.empty() || m.probes.empty()) {
-    std::fprintf(stderr, "%s\n", e.empty() ? "the scene has no probe" : e.c_str());
-    return 2;
-  }
+  if (!bench::LoadProbedScene(path, &m)) return 2;
   m.options.linear_solver = LinearSolver::kFactorCG;
   Model ref = m;
   ref.options.newton_iterations = 4;

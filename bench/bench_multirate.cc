@@ -21,6 +21,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench_util.h"
 #include "core/body.h"
 #include "core/multirate.h"
 #include "core/sparse_system.h"
@@ -31,12 +32,8 @@
 namespace {
 
 using namespace conica;
-
-double ThreadCpuUs() {
-  timespec t;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return 1e6 * t.tv_sec + 1e-3 * t.tv_nsec;
-}
+using bench::Percentile;
+using bench::ThreadCpuUs;
 
 struct Timer {
   std::vector<double> wall_us, cpu_us;
@@ -52,12 +49,6 @@ struct Timer {
     wall_us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
   }
 };
-
-double Percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
-}
 
 void Row(const char* name, const Timer& t) {
   std::printf("| %s | %.2f | %.2f | %.2f | %.2f | %.2f |\n", name, 1e-3 * Percentile(t.cpu_us, 0.5),
@@ -175,16 +166,8 @@ int main(int argc, char** argv) {
     else
       path = o;
   }
-  BodySpec spec;
-  if (std::string e = io::load_scene(path, &spec); !e.empty()) {
-    std::fprintf(stderr, "%s\n", e.c_str());
-    return 2;
-  }
   Model served;
-  if (std::string e = build_model(spec, &served); !e.empty() || served.probes.empty()) {
-    std::fprintf(stderr, "%s\n", e.empty() ? "the scene has no probe" : e.c_str());
-    return 2;
-  }
+  if (!bench::LoadProbedScene(path, &served)) return 2;
   if (body_rate > 0) served.options.body_rate_hz = body_rate;
   if (cg_tolerance > 0) served.options.cg_tolerance = cg_tolerance;
   if (newton > 0) served.options.newton_iterations = newton;
