@@ -86,6 +86,17 @@ void BodyWorker::answer(const Model& served, const std::vector<Vec3>& x, int k, 
   }
 }
 
+BodyStats BodyWorker::stats() const {
+  BodyStats b;
+  b.steps = body_steps();
+  b.late_ticks = late_ticks();
+  b.estimates = frozen_answers();
+  b.factorizations = factorizations();
+  b.rollbacks = rollbacks();
+  b.step_us = 1e-3 * static_cast<double>(last_body_ns());
+  return b;
+}
+
 void BodyWorker::tick(const Model& served, State& s) {
   if (state_.load(std::memory_order_acquire) == kDone) {
     std::swap(front_, back_);

@@ -25,6 +25,7 @@
 #include "core/model.h"
 #include "core/multirate.h"
 #include "core/step.h"
+#include "loop/messages.h"
 
 namespace conica::loop {
 
@@ -55,6 +56,7 @@ class BodyWorker {
   std::uint64_t rollbacks() const { return rollbacks_.load(std::memory_order_relaxed); }
   // The body thread's last step plus local models, ns (relaxed; for statistics).
   std::int64_t last_body_ns() const { return body_ns_.load(std::memory_order_relaxed); }
+  BodyStats stats() const;  // all of the above, for the loop's statistics
 
  private:
   enum : int { kIdle = 0, kRun = 1, kDone = 2, kStop = 3 };

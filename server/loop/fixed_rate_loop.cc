@@ -294,18 +294,8 @@ void FixedRateLoop::refresh_stats() {
   stats_.publish_p99_us = p.p99;
   stats_.paused = paused_;
   stats_.window = static_cast<std::uint32_t>(lateness_.size());
-  if (const BodyWorker* b = scene_ ? scene_->body_worker.get() : nullptr) {
-    stats_.body_steps = b->body_steps();
-    stats_.body_late_ticks = b->late_ticks();
-    stats_.body_estimates = b->frozen_answers();
-    stats_.body_factorizations = b->factorizations();
-    stats_.body_step_us = 1e-3 * static_cast<double>(b->last_body_ns());
-    stats_.body_rollbacks = b->rollbacks();
-  } else {
-    stats_.body_steps = stats_.body_late_ticks = stats_.body_estimates = 0;
-    stats_.body_factorizations = stats_.body_rollbacks = 0;
-    stats_.body_step_us = 0;
-  }
+  const BodyWorker* body = scene_ ? scene_->body_worker.get() : nullptr;
+  stats_.body = body ? body->stats() : BodyStats{};
   observer_->on_stats(stats_, scene_->state.counters);
 }
 

@@ -113,6 +113,17 @@ struct Incoming {
 // ---- statistics ---------------------------------------------------------------------------
 // Loop statistics as plain data: counts since the run started, percentiles (us) over the last
 // `window` ticks, refreshed a few times per second.
+// Multi-rate serving (solver body_rate_hz, loop/body_worker.h): the body thread's counters.
+struct BodyStats {
+  std::uint64_t steps = 0;           // body steps swapped in
+  std::uint64_t late_ticks = 0;      // ticks a body step was due while the last still ran
+  std::uint64_t estimates = 0;       // probe answers from the estimate (no local model in reach)
+  std::uint64_t factorizations = 0;  // of the body's system
+  std::uint64_t rollbacks = 0;       // the body's guard trips (the served state is not stepped:
+                                     // its own rollbacks stay 0)
+  double step_us = 0;                // the last body step with its local models
+};
+
 struct LoopStats {
   std::uint64_t ticks = 0, missed_ticks = 0;  // missed: deadlines skipped after an overrun
   double rate_hz = 0;
@@ -124,14 +135,7 @@ struct LoopStats {
   std::array<std::uint64_t, kNumErrorCodes> errors_by_code{};
   bool paused = false;
   std::uint32_t window = 0;  // ticks the percentiles describe
-  // Multi-rate serving (solver body_rate_hz, loop/body_worker.h); zero otherwise.
-  std::uint64_t body_steps = 0;       // body steps swapped in
-  std::uint64_t body_late_ticks = 0;  // ticks a body step was due while the last still ran
-  std::uint64_t body_estimates = 0;   // probe answers from the estimate (no local model in reach)
-  std::uint64_t body_factorizations = 0;  // of the body's system
-  std::uint64_t body_rollbacks = 0;       // the body's guard trips (the served state is not
-                                          // stepped: its own rollbacks stay 0)
-  double body_step_us = 0;                // the last body step with its local models
+  BodyStats body;            // multi-rate serving; zero otherwise
 };
 
 // ---- outgoing -----------------------------------------------------------------------------

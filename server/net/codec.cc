@@ -138,12 +138,12 @@ void encode_stats(const LoopStatsData& s, const Counters& c, v1::LoopStats* out)
   out->set_input_p99_us(s.input_p99_us);
   out->set_publish_p50_us(s.publish_p50_us);
   out->set_publish_p99_us(s.publish_p99_us);
-  out->set_body_steps(s.body_steps);
-  out->set_body_late_ticks(s.body_late_ticks);
-  out->set_body_estimates(s.body_estimates);
-  out->set_body_factorizations(s.body_factorizations);
-  out->set_body_step_us(s.body_step_us);
-  out->set_body_rollbacks(s.body_rollbacks);
+  out->set_body_steps(s.body.steps);
+  out->set_body_late_ticks(s.body.late_ticks);
+  out->set_body_estimates(s.body.estimates);
+  out->set_body_factorizations(s.body.factorizations);
+  out->set_body_step_us(s.body.step_us);
+  out->set_body_rollbacks(s.body.rollbacks);
   out->set_rollbacks(c.rollbacks);
   out->set_nan_events(c.nan_events);
   out->set_speed_events(c.speed_events);

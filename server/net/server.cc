@@ -93,12 +93,12 @@ class Server::Events final : public loop::Observer {
         s.ticks, s.missed_ticks, s.lateness_p50_us, s.lateness_p99_us, s.lateness_max_us,
         s.step_p50_us, s.step_p99_us, s.input_p99_us, s.publish_p99_us, s.probes_received, s.errors,
         c.rollbacks);
-    if (s.body_steps > 0)
+    if (s.body.steps > 0)
       spdlog::info(
           "body: {} steps, {} late ticks, {} estimated answers, {} factorisations, {} rollbacks; "
           "last step {:.0f} us",
-          s.body_steps, s.body_late_ticks, s.body_estimates, s.body_factorizations,
-          s.body_rollbacks, s.body_step_us);
+          s.body.steps, s.body.late_ticks, s.body.estimates, s.body.factorizations,
+          s.body.rollbacks, s.body.step_us);
   }
 
   // Once per kind per 10 s, with the number suppressed since.

@@ -160,7 +160,7 @@ TEST_F(LoopTest, TicksAtTheFixedRateOnAbsoluteDeadlines) {
   EXPECT_EQ(loop_->stats().missed_ticks, 0u);
   EXPECT_EQ(loop_->stats().lateness_max_us, 0);
   EXPECT_EQ(loop_->stats().rate_hz, kRate);
-  EXPECT_EQ(loop_->stats().body_steps, 0u);
+  EXPECT_EQ(loop_->stats().body.steps, 0u);
 }
 
 // A multi-rate scene's statistics carry the body thread's counters (zero for a body stepped every
@@ -171,7 +171,7 @@ TEST_F(LoopTest, MultiRateStatisticsCarryTheBodyThread) {
   spec.options.linear_solver = LinearSolver::kFactorCG;
   spec.options.body_rate_hz = kRate / 10;
   Start({}, spec);
-  EXPECT_EQ(loop_->stats().body_steps, 0u);
+  EXPECT_EQ(loop_->stats().body.steps, 0u);
   transport_.send_probe(At(0.5), 3, Probe(1, Pressed(0.01, 0.01, 0.01, 1e-3)));
   for (int k = 0; k < 100; ++k) {
     ASSERT_TRUE(loop_->tick());
@@ -179,10 +179,10 @@ TEST_F(LoopTest, MultiRateStatisticsCarryTheBodyThread) {
   }
   loop_->end();
   const LoopStats& st = loop_->stats();
-  EXPECT_GE(st.body_steps, 3u);
-  EXPECT_LE(st.body_steps, 10u);  // one per 10 ticks at most
-  EXPECT_GE(st.body_factorizations, 1u);
-  EXPECT_GT(st.body_step_us, 0);
+  EXPECT_GE(st.body.steps, 3u);
+  EXPECT_LE(st.body.steps, 10u);  // one per 10 ticks at most
+  EXPECT_GE(st.body.factorizations, 1u);
+  EXPECT_GT(st.body.step_us, 0);
 }
 
 TEST_F(LoopTest, ProbeUpdateIsAnsweredAtOnceWithTheCoreForceAndStepsTheBody) {

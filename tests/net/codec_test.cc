@@ -159,12 +159,12 @@ TEST(CodecTest, BodyBoxAndStateFrame) {
   LoopStatsData stats;
   stats.ticks = 5;
   stats.errors_by_code[4] = 2;
-  stats.body_steps = 7;
-  stats.body_late_ticks = 2;
-  stats.body_estimates = 3;
-  stats.body_factorizations = 4;
-  stats.body_rollbacks = 1;
-  stats.body_step_us = 812.5;
+  stats.body.steps = 7;
+  stats.body.late_ticks = 2;
+  stats.body.estimates = 3;
+  stats.body.factorizations = 4;
+  stats.body.rollbacks = 1;
+  stats.body.step_us = 812.5;
   v1::ServerMessage msg;
   for (bool positions : {true, false, true}) {  // reuse: fields are overwritten, not appended
     encode_state(model, state, positions, stats, &msg);
