@@ -10,6 +10,7 @@
 
 #include "core/boundary.h"
 #include "core/contact.h"
+#include "core/multirate.h"
 #include "core/volume.h"
 
 namespace conica {
@@ -494,10 +495,7 @@ std::string build_model(const BodySpec& spec, Model* out) {
   // the tick's): ten times a node's share of the tissue, E* times the median spring length, so
   // that the penalty's give is about a tenth of the tissue's under the probe.
   auto multirate_node_stiffness = [&m] {
-    std::vector<double> l(m.rest_length);
-    if (l.empty()) return 1.0;
-    std::nth_element(l.begin(), l.begin() + l.size() / 2, l.end());
-    return 10 * m.contact_modulus * l[l.size() / 2];
+    return m.rest_length.empty() ? 1.0 : 10 * tissue_share_stiffness(m);
   };
   for (size_t k = 0; k < m.probes.size(); ++k) {
     ProbeSpec& p = m.probes[k];
@@ -511,8 +509,8 @@ std::string build_model(const BodySpec& spec, Model* out) {
       return which + "friction must be >= 0 (a Coulomb coefficient)";
     if (!(p.axis.norm() > 0) || !p.axis.allFinite()) return which + "axis must be nonzero";
     p.axis.normalize();
-    if (m.options.body_rate_hz > 0 && p.contact != ContactModel::kNodes)
-      return which + "multi-rate serving (solver body_rate_hz) needs contact NODES";
+    if (m.options.body_rate_hz > 0 && p.friction > 0)
+      return which + "friction is not served multi-rate (solver body_rate_hz): set friction 0";
     if (p.contact == ContactModel::kNodes && p.stiffness <= 0)
       p.stiffness = m.options.body_rate_hz > 0 ? multirate_node_stiffness() : k_default;
   }

@@ -252,7 +252,7 @@ SystemScratch system_scratch(const Model& m) {
   const size_t ns = m.num_springs(), nn = m.num_nodes();
   Y.alpha.assign(ns, 0);
   Y.beta.assign(ns, 0);
-  for (auto* v : {&Y.x0, &Y.v0}) v->assign(nn, Vec3::Zero());
+  for (auto* v : {&Y.x0, &Y.v0, &Y.x_base}) v->assign(nn, Vec3::Zero());
   Y.mass.assign(nn, 0.0);
   Y.free.assign(3 * nn, 0.0);
   for (size_t i = 0; i < nn; ++i)

@@ -391,6 +391,12 @@ bool tool_touches(const Model& m, int k, double R, const Vec3& pose, const std::
                  .squaredNorm() < R * R;
 }
 
+double triangle_distance(const Model& m, const std::vector<Vec3>& x, int t, const Vec3& p) {
+  const auto& f = m.surface[t];
+  Vec3 b;
+  return (closest_on_triangle(p, x[f[0]], x[f[1]], x[f[2]], &b) - p).norm();
+}
+
 ContactLayer contact_layer(const Model& m, int k, double R) {
   ContactLayer layer;
   const double ks = m.probes[k].stiffness;
@@ -780,6 +786,50 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
       p->anchor = t;
       p->anchor_bary = b;
       p->anchor_offset = offset;
+    }
+  }
+}
+
+void hold_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCandidates* candidates,
+                ProbeState* p) {
+  if (!p->active || !p->proxy_placed) {
+    update_proxy(m, k, x, candidates, p);
+    return;
+  }
+  const double R = probe_radius(m, k, *p);
+  const double reach = kCandidateReach * R;
+  if (candidates) {
+    candidates->reserve(m);
+    candidates->triangles.clear();
+    gather_candidates(m, x, p->proxy, p->proxy, reach, kCandidateSkin * R, candidates);
+  }
+  const int nt = static_cast<int>(m.surface.size());
+  const int* cand = candidates ? candidates->triangles.data() : nullptr;
+  const int nc = candidates ? static_cast<int>(candidates->triangles.size()) : nt;
+  ToolContact c;
+  tool_contact(m, k, R, p->proxy, x, cand, nc, &c, nullptr, nullptr, kToolStiffness);
+  const double kvc = coupling_stiffness(m, k, R);
+  p->proxy_velocity.setZero();
+  p->depth = c.depth;
+  p->contacts = c.faces;
+  p->force = kvc * (p->proxy - p->center);
+  p->stiffness.setZero();
+  if (c.faces > 0)
+    p->stiffness = kvc * (kvc * Mat3::Identity() - c.stiffness).inverse() * c.stiffness;
+  // The surface point the proxy rides on from here.
+  p->anchor = -1;
+  double best = reach * reach;
+  for (int q = 0; q < nc; ++q) {
+    const int t = cand ? cand[q] : q;
+    const auto& f = m.surface[t];
+    Vec3 b;
+    const Vec3 near = closest_on_triangle(p->proxy, x[f[0]], x[f[1]], x[f[2]], &b);
+    const double d2 = (near - p->proxy).squaredNorm();
+    if (d2 < best) {
+      best = d2;
+      p->anchor = t;
+      p->anchor_bary = b;
+      p->anchor_offset = triangle_frame(m, x, t).inverse() * (p->proxy - near);
     }
   }
 }

@@ -190,6 +190,13 @@ void tool_contact(const Model& model, int probe, double radius, const Vec3& pose
 void update_proxy(const Model& model, int k, const std::vector<Vec3>& x,
                   ContactCandidates* candidates, ProbeState* probe);
 
+// The proxy stage for a proxy held where it is (the multi-rate body, whose proxy the 1 kHz tick
+// solved against the body's predicted positions; ProbeSpec::hold_proxy): fills the candidates
+// around it, probe->force, stiffness, depth, contacts and the anchor it rides on from here, with
+// the proxy unmoved. A proxy not yet placed (or an inactive probe) gets update_proxy.
+void hold_proxy(const Model& model, int k, const std::vector<Vec3>& x,
+                ContactCandidates* candidates, ProbeState* probe);
+
 // Probe k's tool radius (m): the live one in its state, else the model's.
 double probe_radius(const Model& model, int k, const ProbeState& probe);
 
@@ -208,6 +215,9 @@ bool tool_touches(const Model& model, int probe, double radius, const Vec3& pose
 // blocks when node_block is given).
 void friction_forces(const Model& model, int k, const ProbeState& probe, const std::vector<Vec3>& x,
                      Vec3* node_force, Mat3* node_block = nullptr);
+
+// The distance (m) from point p to surface triangle t at positions x.
+double triangle_distance(const Model& model, const std::vector<Vec3>& x, int t, const Vec3& p);
 
 // True when point p lies inside the closed surface at positions x (winding number).
 bool inside_surface(const Model& model, const std::vector<Vec3>& x, const Vec3& p);

@@ -199,8 +199,12 @@ void commit_friction(const Model& m, State& s) {
 // (core/contact.h), leaving the triangles near it for the contact stage.
 void update_proxies(const Model& m, State& s, Workspace& ws) {
   for (size_t q = 0; q < m.probes.size(); ++q)
-    if (m.probes[q].contact == ContactModel::kSurface)
-      update_proxy(m, static_cast<int>(q), s.x, &ws.contact.candidates[q], &s.probes[q]);
+    if (m.probes[q].contact == ContactModel::kSurface) {
+      if (m.probes[q].hold_proxy)
+        hold_proxy(m, static_cast<int>(q), s.x, &ws.contact.candidates[q], &s.probes[q]);
+      else
+        update_proxy(m, static_cast<int>(q), s.x, &ws.contact.candidates[q], &s.probes[q]);
+    }
 }
 
 // Explicit integrators take the contact layer implicitly (step.h): backward Euler on the layer

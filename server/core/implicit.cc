@@ -474,7 +474,41 @@ void system_product(const Model& m, State& s, Workspace& ws, double h, const dou
   apply_system(m, ws, p, y);
 }
 
-void integrate_implicit(const Model& m, State& s, Workspace& ws) {
+namespace {
+
+// Whether a surface probe touches the body: its contact layer switches on and off as nodes
+// enter and leave the tool, where a full Newton step can throw a node that the layer did not
+// hold at the step's start deep into it (or out of it), so the step is backtracked on the
+// residual (implicit_newton).
+bool layer_in_contact(const Model& m, const State& s) {
+  for (size_t q = 0; q < m.probes.size(); ++q)
+    if (m.probes[q].contact == ContactModel::kSurface && s.probes[q].active &&
+        s.probes[q].proxy_placed && s.probes[q].contacts > 0)
+      return true;
+  return false;
+}
+
+// |h^2 f - M (x1 - x0 - h v0)|^2 on free axes, the forces evaluated at s.x.
+double residual_norm2(const Model& m, const State& s, const Workspace& ws, double h) {
+  double r2 = 0;
+  for (int i = 0; i < m.num_nodes(); ++i) {
+    const Vec3 res =
+        h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.system.x0[i] - h * ws.system.v0[i]);
+    r2 += res.cwiseProduct(m.free_axes[i]).squaredNorm();
+  }
+  return r2;
+}
+
+// Backward Euler's Newton iteration, each linear system solved by solve_system (returns its CG
+// iterations). Each step is shortened so that no spring ends shorter than its hard-stop length;
+// with a surface probe in contact it is then backtracked (halved, at most kContactBacktracks
+// times) until the residual falls: the layer's lumped blocks only describe the nodes it holds at
+// the iterate, so a step from a state where a node was free of the tool can overshoot into the
+// barrier (or off the tool) and the fixed budget would end on that state. The forces of the
+// accepted iterate are the next iteration's.
+template <class SolveSystem>
+void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solve_system) {
+  constexpr int kContactBacktracks = 6;
   const double h = substep_of(m);
   const int nn = m.num_nodes(), ns = m.num_springs();
   for (int i = 0; i < nn; ++i) {
@@ -485,10 +519,15 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
   hard_stop(m, s, ws);  // the predictor must not cross solid height either
   const double mfac = 1.0 + h * m.options.mass_damping;
   for (int i = 0; i < nn; ++i) ws.system.mass[i] = m.mass[i] * mfac;
+  const bool backtrack = layer_in_contact(m, s);
+  bool evaluated = false;  // the forces at s.x are in ws (from the last backtracking)
 
   for (int it = 0; it < m.options.newton_iterations; ++it) {
-    for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.system.x0[i]) / h;
-    evaluate_forces(m, s, ws, true);
+    if (!evaluated) {
+      for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.system.x0[i]) / h;
+      evaluate_forces(m, s, ws, true);
+    }
+    evaluated = false;
     // rhs = -h^2 R = h^2 f - M (x1 - x0 - h v0), on free axes.
     for (int i = 0; i < nn; ++i) {
       const Vec3 res =
@@ -498,8 +537,7 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
     ws.system.h2 = h * h;
     system_coefficients(m, ws, h);
     for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
-    build_preconditioner(m, ws);
-    s.counters.cg_iterations += solve(m, ws);
+    s.counters.cg_iterations += solve_system();
     ++s.counters.newton_iterations;
 
     // Line search: never make a spring shorter than its hard-stop length (unless it was already
@@ -518,66 +556,43 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
         step_len *= 0.5;
       }
     }
-    for (int i = 0; i < nn; ++i) s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
+    if (backtrack) {
+      double r0 = 0;
+      for (int j = 0; j < 3 * nn; ++j) r0 += ws.system.rhs[j] * ws.system.rhs[j];
+      for (int i = 0; i < nn; ++i) ws.system.x_base[i] = s.x[i];
+      for (int tries = 0;; ++tries, step_len *= 0.5) {
+        for (int i = 0; i < nn; ++i) {
+          s.x[i] = ws.system.x_base[i] + step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
+          s.v[i] = (s.x[i] - ws.system.x0[i]) / h;
+        }
+        evaluate_forces(m, s, ws, true);
+        if (tries == kContactBacktracks || residual_norm2(m, s, ws, h) < r0) break;
+      }
+      evaluated = true;
+    } else {
+      for (int i = 0; i < nn; ++i) s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
+    }
     if (newton_converged(m, nn, dx)) break;
   }
   for (int i = 0; i < nn; ++i)
     s.v[i] = ((s.x[i] - ws.system.x0[i]) / h).cwiseProduct(m.free_axes[i]);
 }
 
+}  // namespace
+
+void integrate_implicit(const Model& m, State& s, Workspace& ws) {
+  implicit_newton(m, s, ws, [&] {
+    build_preconditioner(m, ws);
+    return solve(m, ws);
+  });
+}
+
 // integrate_implicit with LinearSolver::kFactorCG: the same Newton iteration and line search,
-// each system solved by factored_solve. Kept apart so that the block-Jacobi path's arithmetic
-// stays as it was to the last bit.
+// each system solved by factored_solve (a factor renewed every refactor_every steps).
 void integrate_implicit_factored(const Model& m, State& s, Workspace& ws) {
-  const double h = substep_of(m);
-  const int nn = m.num_nodes(), ns = m.num_springs();
-  for (int i = 0; i < nn; ++i) {
-    ws.system.x0[i] = s.x[i];
-    ws.system.v0[i] = s.v[i];
-    s.x[i] += h * s.v[i].cwiseProduct(m.free_axes[i]);  // predictor x1 = x0 + h v0
-  }
-  hard_stop(m, s, ws);  // the predictor must not cross solid height either
-  const double mfac = 1.0 + h * m.options.mass_damping;
-  for (int i = 0; i < nn; ++i) ws.system.mass[i] = m.mass[i] * mfac;
   FactorScratch& F = *ws.factor;
   if (m.options.refactor_every > 0 && ++F.age >= m.options.refactor_every) F.wanted = true;
-
-  for (int it = 0; it < m.options.newton_iterations; ++it) {
-    for (int i = 0; i < nn; ++i) s.v[i] = (s.x[i] - ws.system.x0[i]) / h;
-    evaluate_forces(m, s, ws, true);
-    // rhs = -h^2 R = h^2 f - M (x1 - x0 - h v0), on free axes.
-    for (int i = 0; i < nn; ++i) {
-      const Vec3 res =
-          h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.system.x0[i] - h * ws.system.v0[i]);
-      for (int c = 0; c < 3; ++c) ws.system.rhs[c * nn + i] = res[c] * ws.system.free[c * nn + i];
-    }
-    ws.system.h2 = h * h;
-    system_coefficients(m, ws, h);
-    for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
-    s.counters.cg_iterations += factored_solve(m, s, ws);
-    ++s.counters.newton_iterations;
-
-    // Line search: never make a spring shorter than its hard-stop length (unless it was already
-    // and the step does not shorten it further). Measured along its direction, a spring's length
-    // changes by at most the motion of its two ends: a step that moves no node by half the
-    // smallest room to the hard stop (at these positions, from the force pass) needs no test.
-    const double* dx = ws.system.dx.data();
-    double step_len = 1.0;
-    if (!(ws.springs.slack > 2 * std::sqrt(max_node_motion2(nn, dx)))) {
-      for (int tries = 0; tries < 12; ++tries) {
-        if (count_blocked(ns, nn, ws.springs.px.data(), ws.springs.py.data(), ws.springs.pz.data(),
-                          dx, step_len, m.spring_i.data(), m.spring_j.data(), ws.springs.ux.data(),
-                          ws.springs.uy.data(), ws.springs.uz.data(), ws.layout.min_length.data(),
-                          ws.springs.length.data()) == 0)
-          break;
-        step_len *= 0.5;
-      }
-    }
-    for (int i = 0; i < nn; ++i) s.x[i] += step_len * Vec3(dx[i], dx[nn + i], dx[2 * nn + i]);
-    if (newton_converged(m, nn, dx)) break;
-  }
-  for (int i = 0; i < nn; ++i)
-    s.v[i] = ((s.x[i] - ws.system.x0[i]) / h).cwiseProduct(m.free_axes[i]);
+  implicit_newton(m, s, ws, [&] { return factored_solve(m, s, ws); });
 }
 
 }  // namespace conica::detail

@@ -124,9 +124,11 @@ struct ProbeSpec {
   ContactModel contact = ContactModel::kNodes;
   ToolShape shape = ToolShape::kSphere;
   Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, punch: the direction it pushes along
-  double coupling = 0;  // kSurface: N/m, virtual coupling device-proxy; 0: kCouplingFactor
-                        // E* R
-  double friction = 0;  // kSurface: Coulomb coefficient mu (>= 0), stick and slip
+  double coupling = 0;      // kSurface: N/m, virtual coupling device-proxy; 0: kCouplingFactor
+                            // E* R
+  double friction = 0;      // kSurface: Coulomb coefficient mu (>= 0), stick and slip
+  bool hold_proxy = false;  // kSurface: the step keeps the proxy where it is (hold_proxy): the
+                            // multi-rate body, whose proxy the 1 kHz tick solves (not in scenes)
 };
 
 // A rigid half-space {x : n.x >= offset} that nodes cannot enter (compression plates).

@@ -47,16 +47,10 @@ void lu_solve(const double* a, int n, int ld, const int* pivot, double* b) {
   }
 }
 
-// The region of a probe at `center`: the free nodes within `reach` of it at positions x, the
-// closest first, at most lm's capacity, into lm->nodes and lm->x0 (near: scratch, reserved).
-void choose_region(const Model& m, const std::vector<Vec3>& x, const Vec3& center, double reach,
+// The region from the candidates in *near (squared distance, node): the closest first, at most
+// lm's capacity, by node index, into lm->nodes and lm->x0; dx reset.
+void finish_region(const std::vector<Vec3>& x, const Vec3& center,
                    std::vector<std::pair<double, int>>* near, LocalModel* lm) {
-  near->clear();
-  for (int i = 0; i < m.num_nodes(); ++i) {
-    if (m.fixed[i] == 7) continue;
-    const double d2 = (x[i] - center).squaredNorm();
-    if (d2 < reach * reach) near->emplace_back(d2, i);
-  }
   const int num = std::min<int>(lm->capacity, static_cast<int>(near->size()));
   std::partial_sort(near->begin(), near->begin() + num, near->end());
   // By node index: the same nodes make the same region wherever the probe is among them (the
@@ -70,6 +64,54 @@ void choose_region(const Model& m, const std::vector<Vec3>& x, const Vec3& cente
     lm->x0[a] = x[lm->nodes[a]];
     lm->dx[a].setZero();  // a fresh model: the next answer starts from its base state
   }
+  lm->fresh = true;
+}
+
+// The region of a probe at `center`: the free nodes within `reach` of it at positions x (near:
+// scratch, reserved).
+void choose_region(const Model& m, const std::vector<Vec3>& x, const Vec3& center, double reach,
+                   std::vector<std::pair<double, int>>* near, LocalModel* lm) {
+  near->clear();
+  for (int i = 0; i < m.num_nodes(); ++i) {
+    if (m.fixed[i] == 7) continue;
+    const double d2 = (x[i] - center).squaredNorm();
+    if (d2 < reach * reach) near->emplace_back(d2, i);
+  }
+  finish_region(x, center, near, lm);
+}
+
+// Surface contact's region around the tool at `pose`: the free nodes of the surface triangles
+// that come within `reach` of it (near: scratch of three times the triangles, reserved).
+void choose_surface_region(const Model& m, const std::vector<Vec3>& x, const Vec3& pose,
+                           double reach, std::vector<std::pair<double, int>>* near,
+                           LocalModel* lm) {
+  near->clear();
+  for (int t = 0; t < static_cast<int>(m.surface.size()); ++t) {
+    const auto& f = m.surface[t];
+    // Every point of the triangle is at least |x0 - pose| - (its longest edge from x0) away.
+    const double e =
+        std::sqrt(std::max((x[f[1]] - x[f[0]]).squaredNorm(), (x[f[2]] - x[f[0]]).squaredNorm()));
+    if ((x[f[0]] - pose).norm() - e > reach || triangle_distance(m, x, t, pose) >= reach) continue;
+    for (int i : f)
+      if (m.fixed[i] != 7) near->emplace_back((x[i] - pose).squaredNorm(), i);
+  }
+  // Each node once (a node is shared by the triangles around it).
+  std::sort(near->begin(), near->end(),
+            [](const auto& a, const auto& b) { return a.second < b.second; });
+  near->erase(std::unique(near->begin(), near->end(),
+                          [](const auto& a, const auto& b) { return a.second == b.second; }),
+              near->end());
+  finish_region(x, pose, near, lm);
+}
+
+// The layer's force (and lumped blocks) of surface probe k with its tool at the proxy of p, over
+// the triangles `tris` at positions x, into force / block (added; the caller zeroes them).
+void layer_forces(const Model& m, int k, const ProbeState& p, const std::vector<Vec3>& x,
+                  const std::vector<int>& tris, Vec3* force, Mat3* block) {
+  if (!p.active || !p.proxy_placed) return;
+  ToolContact c;
+  tool_contact(m, k, probe_radius(m, k, p), p.proxy, x, tris.data(), static_cast<int>(tris.size()),
+               &c, force, block, kToolForceOnly);
 }
 
 }  // namespace
@@ -91,11 +133,18 @@ LocalModel::LocalModel(int cap)
       g(9 * static_cast<size_t>(cap), 0.0),
       pivot(4 * static_cast<size_t>(cap), 0) {}
 
+SurfaceScratch::SurfaceScratch(const Model& m)
+    : candidates(m.probes.size(), ContactCandidates(m)),
+      force(m.num_nodes(), Vec3::Zero()),
+      block(m.num_nodes(), Mat3::Zero()) {}
+
 LocalModelBuilder::LocalModelBuilder(const Model& m)
     : factor_(std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)),
       held_(m.probes.size(), std::vector<Mat3>(m.num_nodes(), Mat3::Zero())),
+      layer_force_(m.num_nodes(), Vec3::Zero()),
+      layer_block_(m.num_nodes(), Mat3::Zero()),
       regions_(m.probes.size()) {
-  near_.reserve(m.num_nodes());
+  near_.reserve(std::max(m.num_nodes(), 3 * static_cast<int>(m.surface.size())));
 }
 
 LocalModelBuilder::~LocalModelBuilder() = default;
@@ -119,6 +168,12 @@ bool LocalModelBuilder::refactor(const Model& m, State& s, Workspace& ws) {
   generation_ = ++factorizations_;
   for (size_t k = 0; k < m.probes.size(); ++k) {  // what the contact stage put in the system
     const ProbeState& p = s.probes[k];
+    if (m.probes[k].contact == ContactModel::kSurface) {  // the layer's lumped blocks
+      std::fill(held_[k].begin(), held_[k].end(), Mat3::Zero());
+      layer_forces(m, static_cast<int>(k), p, s.x, ws.contact.candidates[k].triangles, nullptr,
+                   held_[k].data());
+      continue;
+    }
     const double R = probe_radius(m, static_cast<int>(k), p), kc = m.probes[k].stiffness;
     for (int i = 0; i < m.num_nodes(); ++i) {
       Vec3 f, dir;
@@ -149,15 +204,27 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
   const ProbeState& p = s.probes[k];
   const Vec3 c = p.center;
   const double R = probe_radius(m, k, p), kc = m.probes[k].stiffness;
-  choose_region(m, s.x, c, R + margin, &near_, lm);
+  const bool surface = m.probes[k].contact == ContactModel::kSurface;
+  if (surface) {
+    choose_surface_region(m, s.x, p.proxy_placed ? p.proxy : c, R + margin, &near_, lm);
+    lm->center0 = c;
+    std::fill(layer_force_.begin(), layer_force_.end(), Vec3::Zero());
+    layer_forces(m, k, p, s.x, ws.contact.candidates[k].triangles, layer_force_.data(), nullptr);
+  } else {
+    choose_region(m, s.x, c, R + margin, &near_, lm);
+  }
   const int num = lm->num;
   lm->h = detail::substep_of(m);
   for (int a = 0; a < num; ++a) {
     const int i = lm->nodes[a];
     Vec3 f, dir;
     Mat3 dfdc;
-    lm->f0[a] =
-        p.active && node_contact(s.x[i], m.normal[i], c, R, kc, &f, &dfdc, &dir) ? f : Vec3::Zero();
+    if (surface)
+      lm->f0[a] = layer_force_[i];
+    else
+      lm->f0[a] = p.active && node_contact(s.x[i], m.normal[i], c, R, kc, &f, &dfdc, &dir)
+                      ? f
+                      : Vec3::Zero();
     lm->b0[a] = held_[k][i];
   }
   // W_RR = h^2 A^-1 restricted to the region: the region's unit vectors solved at once (their
@@ -191,11 +258,20 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
   return true;
 }
 
+double tissue_share_stiffness(const Model& m) {
+  std::vector<double> l(m.rest_length);
+  if (l.empty()) return 0;
+  std::nth_element(l.begin(), l.begin() + l.size() / 2, l.end());
+  return m.contact_modulus * l[l.size() / 2];
+}
+
 void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
-                          double radius, double margin, std::vector<std::pair<double, int>>* near,
-                          LocalModel* lm) {
-  const double kt = 0.1 * m.probes[k].stiffness;
-  choose_region(m, x, center, radius + margin, near, lm);
+                          double radius, double margin, double kt,
+                          std::vector<std::pair<double, int>>* near, LocalModel* lm) {
+  if (m.probes[k].contact == ContactModel::kSurface)
+    choose_surface_region(m, x, center, radius + margin, near, lm);
+  else
+    choose_region(m, x, center, radius + margin, near, lm);
   const int num = lm->num;
   lm->valid = false;  // an estimate, not a body step's model
   const int ld = 3 * lm->capacity;
@@ -245,6 +321,10 @@ Model body_model(const Model& served) {
   b.options.dt = served.options.dt * ticks_per_body_step(served);
   b.options.refactor_every = 0;
   b.options.refactor_iterations = std::numeric_limits<int>::max();
+  // The tick solves the proxy against the body's predicted positions, jointly with the local
+  // model; a body step that moved it again, against its own positions at the step's start and
+  // with the nodes held, would press a whole body step's travel into the layer at once.
+  for (ProbeSpec& p : b.probes) p.hold_proxy = p.contact == ContactModel::kSurface;
   return b;
 }
 
@@ -253,31 +333,62 @@ void prime_workspace(Workspace& ws) {
 }
 
 void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, double radius,
-                    ProbeState* probe, std::vector<Vec3>* x) {
+                    ProbeState* probe, std::vector<Vec3>* x, SurfaceScratch* surface) {
   constexpr int kMaxNewton = 20;
   const int num = lm.num, n3 = 3 * num, ld = 3 * lm.capacity;
-  const double R = radius > 0 ? radius : m.probes[k].radius, kc = m.probes[k].stiffness;
+  const bool layer = m.probes[k].contact == ContactModel::kSurface && x && surface;
   probe->center = center;
   probe->active = true;
   if (radius > 0) probe->radius = radius;
+  const double R = layer ? probe_radius(m, k, *probe) : radius > 0 ? radius : m.probes[k].radius;
+  const double kc = m.probes[k].stiffness;
   int* act = lm.pivot.data() + 3 * lm.capacity;  // the active nodes (in contact now or at x0)
   int* piv = lm.pivot.data();
   int na = 0;
+  for (int a = 0; a < num; ++a)  // (a non-finite start, which a failed solve could leave: 0)
+    if (!std::isfinite(lm.dx[a].squaredNorm())) lm.dx[a].setZero();
 
-  // f, dfdc at x0 + dx and the active set; R = dx - W [f - f0 + B0 dx] into lm.rhs (only the
-  // active nodes carry a nonzero bracket); returns |R|_inf.
-  auto residual = [&]() {
-    na = 0;
+  ContactCandidates* cand = layer ? &surface->candidates[k] : nullptr;
+  // f and dfdc = df/dx at x0 + dx: the node law, or the layer at the held proxy (dfdc = -B, its
+  // lumped blocks); returns whether node a is in contact.
+  auto forces = [&]() {
+    if (layer) {
+      for (int a = 0; a < num; ++a) {
+        const int i = lm.nodes[a];
+        (*x)[i] = lm.x0[a] + lm.dx[a];
+        surface->force[i].setZero();
+        surface->block[i].setZero();
+      }
+      for (int t : cand->triangles)
+        for (int i : m.surface[t]) {
+          surface->force[i].setZero();
+          surface->block[i].setZero();
+        }
+      layer_forces(m, k, *probe, *x, cand->triangles, surface->force.data(), surface->block.data());
+      for (int a = 0; a < num; ++a) {
+        lm.f[a] = surface->force[lm.nodes[a]];
+        lm.dfdc[a] = -surface->block[lm.nodes[a]];
+      }
+      return;
+    }
     for (int a = 0; a < num; ++a) {
       Vec3 dir;
-      const bool in = node_contact(lm.x0[a] + lm.dx[a], m.normal[lm.nodes[a]], center, R, kc,
-                                   &lm.f[a], &lm.dfdc[a], &dir);
-      if (!in) {
+      if (!node_contact(lm.x0[a] + lm.dx[a], m.normal[lm.nodes[a]], center, R, kc, &lm.f[a],
+                        &lm.dfdc[a], &dir)) {
         lm.f[a].setZero();
         lm.dfdc[a].setZero();
       }
-      if (in || lm.f0[a].squaredNorm() > 0 || lm.b0[a].squaredNorm() > 0) act[na++] = a;
     }
+  };
+  // The forces and the active set at x0 + dx; R = dx - W [f - f0 + B0 dx] into lm.rhs (only the
+  // active nodes carry a nonzero bracket); returns |R|_inf.
+  auto residual = [&]() {
+    forces();
+    na = 0;
+    for (int a = 0; a < num; ++a)
+      if (lm.f[a].squaredNorm() > 0 || lm.dfdc[a].squaredNorm() > 0 || lm.f0[a].squaredNorm() > 0 ||
+          lm.b0[a].squaredNorm() > 0)
+        act[na++] = a;
     double worst = 0;
     for (int row = 0; row < n3; ++row) {
       double s = 0;
@@ -309,37 +420,56 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   };
 
   const double tol = 1e-9 * std::max(R, 1e-6);
-  for (int a = 0; a < num; ++a)  // (a non-finite start, which a failed solve could leave: 0)
-    if (!std::isfinite(lm.dx[a].squaredNorm())) lm.dx[a].setZero();
-  double res = n3 > 0 ? residual() : 0;
+  double res = 0;
   int it = 0;
   double* d = lm.g.data();  // the active block's step (3 na <= 3 capacity)
-  for (; it < kMaxNewton && res > tol && na > 0; ++it) {
-    if (!factor_jacobian()) break;
-    // J d = -R: the active rows by the LU, then each other row d_r = -R_r + (W Q)_{rA} d_A.
-    for (int r = 0; r < 3 * na; ++r) d[r] = -lm.rhs[3 * act[r / 3] + r % 3];
-    lu_solve(lm.jac.data(), 3 * na, ld, piv, d);
-    for (int row = 0; row < n3; ++row) {
-      double s = -lm.rhs[row];
-      for (int c = 0; c < 3 * na; ++c) s += wq(row, c / 3, c % 3) * d[c];
-      lm.rhs[row] = s;  // the step of every row (the active ones reproduce d)
+  // Newton on (1) from the current dx.
+  auto solve = [&]() {
+    res = n3 > 0 ? residual() : 0;
+    for (it = 0; it < kMaxNewton && res > tol && na > 0; ++it) {
+      if (!factor_jacobian()) break;
+      // J d = -R: the active rows by the LU, then each other row d_r = -R_r + (W Q)_{rA} d_A.
+      for (int r = 0; r < 3 * na; ++r) d[r] = -lm.rhs[3 * act[r / 3] + r % 3];
+      lu_solve(lm.jac.data(), 3 * na, ld, piv, d);
+      for (int row = 0; row < n3; ++row) {
+        double s = -lm.rhs[row];
+        for (int c = 0; c < 3 * na; ++c) s += wq(row, c / 3, c % 3) * d[c];
+        lm.rhs[row] = s;  // the step of every row (the active ones reproduce d)
+      }
+      // Backtracking: the full step, or halves of it until the residual falls (the smallest tried
+      // if none does).
+      for (int a = 0; a < num; ++a) {
+        lm.dx_last[a] = lm.dx[a];
+        lm.step[a] = Vec3(lm.rhs[3 * a], lm.rhs[3 * a + 1], lm.rhs[3 * a + 2]);
+      }
+      const double res0 = res;
+      double alpha = 1;
+      for (int tries = 0; tries < 8; ++tries, alpha *= 0.5) {
+        for (int a = 0; a < num; ++a) lm.dx[a] = lm.dx_last[a] + alpha * lm.step[a];
+        res = residual();
+        if (res < res0) break;
+      }
     }
-    // Backtracking: the full step, or halves of it until the residual falls (the smallest tried
-    // if none does).
-    for (int a = 0; a < num; ++a) {
-      lm.dx_last[a] = lm.dx[a];
-      lm.step[a] = Vec3(lm.rhs[3 * a], lm.rhs[3 * a + 1], lm.rhs[3 * a + 2]);
-    }
-    const double res0 = res;
-    double alpha = 1;
-    for (int tries = 0; tries < 8; ++tries, alpha *= 0.5) {
-      for (int a = 0; a < num; ++a) lm.dx[a] = lm.dx_last[a] + alpha * lm.step[a];
-      res = residual();
-      if (res < res0) break;
-    }
+  };
+  if (layer) {
+    // Surface contact: the proxy moves first, against the nodes where the last answer left them
+    // (a one-tick stagger, as in the single-rate step), then (1) is solved with it held. A fresh
+    // model (a body step just handed over) starts at the body's state, which is in equilibrium
+    // with the proxy the body step held, not with the proxy of the last tick: the region is first
+    // solved against the last tick's proxy, so that the proxy moves against the nodes the last
+    // answer would have left under this model, not against a body a whole body step behind.
+    if (lm.fresh && probe->proxy_placed) solve();
+    for (int a = 0; a < num; ++a) (*x)[lm.nodes[a]] = lm.x0[a] + lm.dx[a];
+    update_proxy(m, k, *x, cand, probe);
   }
+  lm.fresh = false;
+  solve();
   lm.newton_iterations = it;
   lm.residual = res;
+  if (layer) {  // the device has the coupling force and stiffness of the proxy's update
+    for (int a = 0; a < num; ++a) (*x)[lm.nodes[a]] = lm.x0[a] + lm.dx[a];
+    return;
+  }
 
   probe->force.setZero();
   probe->stiffness.setZero();

@@ -19,13 +19,24 @@
 // assembly and a numeric factorisation, which allocates inside CHOLMOD, and 3 |R| solves; or,
 // between factorisations, W from the last factor with the contact Jacobian it held); solved
 // on the 1 kHz thread (haptic_contact: no allocation, the region's capacity fixed at load).
-// Probes with the node contact law (ContactModel::kNodes) only.
+//
+// Surface contact (ContactModel::kSurface, core/contact.h). f is the contact layer's force on the
+// nodes with the tool at its proxy, and the region is the nodes of the surface triangles within
+// the probe radius plus the margin of the proxy (only surface nodes carry the layer's force). A
+// tick first moves the proxy toward the device target with the nodes held where the last answer
+// left them (update_proxy, as the single-rate proxy stage does), then solves (1) with the proxy
+// held; df/dx in J is the layer's lumped node blocks (-B, the positive semi-definite bound the
+// implicit system takes), so Newton converges to the exact (1) at a linear rate where the blocks
+// leave out the layer's curvature. The device gets the coupling force and its stiffness with the
+// nodes held; the proxy's next update sees the nodes this tick moved (a one-tick stagger, as in
+// the single-rate step).
 #pragma once
 
 #include <cstdint>
 #include <memory>
 #include <vector>
 
+#include "core/contact.h"
 #include "core/model.h"
 
 namespace conica {
@@ -50,8 +61,18 @@ struct LocalModel {
   std::vector<Mat3> dfdc;
   std::vector<double> jac, rhs, g;
   std::vector<int> pivot;     // (4 capacity) LU pivots, then the active nodes
+  bool fresh = false;         // dx was reset (a new region or body state): no answer yet
   int newton_iterations = 0;  // of the last haptic_contact
   double residual = 0;        // m, its final |R(dx)|
+};
+
+// The 1 kHz side's scratch for probes with surface contact, sized for the model at load: each
+// probe's candidate triangles (kept between ticks) and the layer's node forces and blocks.
+struct SurfaceScratch {
+  explicit SurfaceScratch(const Model& m);
+  std::vector<ContactCandidates> candidates;  // (probes)
+  std::vector<Vec3> force;                    // (nodes) N
+  std::vector<Mat3> block;                    // (nodes) N/m
 };
 
 // The body's side: owns the factor W comes from (allocates: at load).
@@ -66,10 +87,11 @@ class LocalModelBuilder {
   // preconditioner).
   bool refactor(const Model& m, State& s, Workspace& ws);
   // Probe k's local model at state s from the last factor: the region (the nodes within the
-  // probe radius plus `margin`, the closest if more than the capacity), their positions and probe
-  // forces at s, and W = h^2 A^-1 over them with the contact Jacobian A held (B0), so that (1)
-  // stays consistent when the factor is some body steps older than s. W is solved anew only when
-  // the factor or the region changed since probe k's last model. False without a factor.
+  // probe radius plus `margin`, the closest if more than the capacity; surface contact: the nodes
+  // of the surface triangles that near the proxy), their positions and probe forces at s, and W =
+  // h^2 A^-1 over them with the contact Jacobian A held (B0), so that (1) stays consistent when the
+  // factor is some body steps older than s. W is solved anew only when the factor or the region
+  // changed since probe k's last model. False without a factor.
   bool build(const Model& m, const State& s, Workspace& ws, int k, double margin, LocalModel* out);
   bool factored() const { return generation_ > 0; }
   std::uint64_t factorizations() const { return factorizations_; }  // successful ones
@@ -88,6 +110,8 @@ class LocalModelBuilder {
   std::vector<double> r_, z_;
   std::vector<std::pair<double, int>> near_;
   std::vector<std::vector<Mat3>> held_;  // (probes x nodes) N/m: B0 of the factored system
+  std::vector<Vec3> layer_force_;        // (nodes) N, surface contact's f0
+  std::vector<Mat3> layer_block_;        // (nodes) N/m
   std::vector<Region> regions_;          // (probes)
   std::uint64_t generation_ = 0;         // W's key: 0 without a usable factor
   std::uint64_t factorizations_ = 0, failures_ = 0, solves_ = 0;
@@ -108,22 +132,27 @@ bool refactor_due(const SolverOptions& served, bool factored, int steps_since, d
 bool step_body(const Model& body, const SolverOptions& served, State& s, Workspace& ws,
                LocalModelBuilder& builder, int* since_factor);
 
+// A node's own share of the tissue, k_t = E* times the median spring length (N/m; a tenth of the
+// multi-rate node penalty): what an estimate puts behind each node. Allocates (at load).
+double tissue_share_stiffness(const Model& m);
+
 // Until a body step has built a local model around the probe (the probe just arrived, or moved
-// beyond the last model's reach), an estimate: the region around `center` at positions x, each
-// node behind its own share of the tissue (W = I / k_t per node, k_t = a tenth of the node
-// penalty, what the multi-rate default derives it from: E* times the median spring length) and
-// no force at the base state. `near` is scratch of the model's node count (reserved). Allocates
-// nothing.
+// beyond the last model's reach), an estimate: the region around `center` (surface contact:
+// around the probe's proxy once placed) at positions x, each node behind its own share of the
+// tissue (W = I / k_t per node, k_t from tissue_share_stiffness) and no force at the base state.
+// `near` is scratch of at least the model's node count and three times its surface triangles
+// (reserved). Allocates nothing.
 void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
-                          double radius, double margin, std::vector<std::pair<double, int>>* near,
-                          LocalModel* lm);
+                          double radius, double margin, double k_t,
+                          std::vector<std::pair<double, int>>* near, LocalModel* lm);
 
 // Ticks per body step of a served model (options.body_rate_hz > 0): round(rate / body rate).
 int ticks_per_body_step(const Model& served);
 // The body a served model steps on its own thread: its step ticks_per_body_step ticks long (the
 // probes' node stiffness stays the served one) and, with kFactorCG, no factorisation of its own
 // (the builder hands it a fresh supernodal factor after every step; until the first,
-// prime_workspace leaves CG block-Jacobi preconditioned).
+// prime_workspace leaves CG block-Jacobi preconditioned); surface probes hold their proxy
+// where the tick solved it (ProbeSpec::hold_proxy).
 Model body_model(const Model& served);
 void prime_workspace(Workspace& ws);
 
@@ -131,8 +160,10 @@ void prime_workspace(Workspace& ws);
 // stiffness, contacts and the region's displaced positions x0 + dx into x (the other nodes keep
 // theirs). Newton's method from the last answer's displacements, each step backtracked until the
 // residual falls (the node law switches as nodes enter and leave contact, where plain Newton can
-// cycle between the two sides). Allocates nothing.
+// cycle between the two sides). Surface contact needs x (the body's positions with the region
+// where the last answer left it: the proxy is moved against them) and `surface`; it also moves
+// the probe's proxy. Allocates nothing.
 void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, double radius,
-                    ProbeState* probe, std::vector<Vec3>* x);
+                    ProbeState* probe, std::vector<Vec3>* x, SurfaceScratch* surface = nullptr);
 
 }  // namespace conica

@@ -199,6 +199,7 @@ struct SystemScratch {
   std::vector<double> alpha, beta;           // (num_springs) system coefficients
   double h2 = 0;                             // s^2, h^2 of the system being solved
   std::vector<Vec3> x0, v0;                  // (num_nodes) state at the step's start
+  std::vector<Vec3> x_base;                  // (num_nodes) a Newton iterate being backtracked
   std::vector<double> mass;                  // (num_nodes) kg, m (1 + h mu)
   std::vector<double> free;                  // (3 num_nodes) 1 on free axes, 0 on fixed
   std::vector<double> diag, pre;             // (6 num_nodes) diagonal blocks, inverses

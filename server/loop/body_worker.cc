@@ -14,7 +14,9 @@ BodyWorker::BodyWorker(const Model& served, const State& rest)
       ws_(body_),
       builder_(body_),
       every_(ticks_per_body_step(served)),
-      served_options_(served.options) {
+      served_options_(served.options),
+      surface_(served),
+      xs_(served.num_nodes(), Vec3::Zero()) {
   double r = 0;
   for (const ProbeSpec& p : served.probes) r = std::max(r, p.radius);
   reach_ = served.options.body_reach > 0 ? served.options.body_reach : 0.5 * r;
@@ -23,7 +25,10 @@ BodyWorker::BodyWorker(const Model& served, const State& rest)
     s.x = rest.x;
   }
   input_ = rest.probes;
-  near_.reserve(served.num_nodes());
+  near_.reserve(std::max(served.num_nodes(), 3 * static_cast<int>(served.surface.size())));
+  const double share = tissue_share_stiffness(served);
+  for (const ProbeSpec& p : served.probes)
+    share_.push_back(p.contact == ContactModel::kSurface ? share : 0.1 * p.stiffness);
   prime_workspace(ws_);
   thread_ = std::thread([this] { run(); });
 }
@@ -47,6 +52,10 @@ void BodyWorker::run() {
     }
     const auto t0 = std::chrono::steady_clock::now();
     for (size_t k = 0; k < input_.size(); ++k) {
+      if (body_.probes[k].contact == ContactModel::kSurface) {
+        body_state_.probes[k] = input_[k];  // the tick's proxy, carried by the body's surface
+        continue;
+      }
       body_state_.probes[k].radius = input_[k].radius;
       set_probe(body_state_, static_cast<int>(k), input_[k].center, input_[k].active);
     }
@@ -78,10 +87,12 @@ void BodyWorker::answer(const Model& served, const std::vector<Vec3>& x, int k, 
   LocalModel& lm = snap_[front_].local[k];
   const double R = radius > 0 ? radius : probe->radius;
   if (lm.valid && (center - lm.center0).norm() <= reach_) {
-    haptic_contact(served, lm, k, center, R, probe, x_out);
+    haptic_contact(served, lm, k, center, R, probe, x_out, &surface_);
   } else {
-    estimate_local_model(served, x, k, center, R, reach_, &near_, &estimate_);
-    haptic_contact(served, estimate_, k, center, R, probe, x_out);
+    const bool surface = served.probes[k].contact == ContactModel::kSurface;
+    estimate_local_model(served, x, k, surface && probe->proxy_placed ? probe->proxy : center, R,
+                         reach_, share_[k], &near_, &estimate_);
+    haptic_contact(served, estimate_, k, center, R, probe, x_out, &surface_);
     ++frozen_;
   }
 }
@@ -128,9 +139,15 @@ void BodyWorker::tick(const Model& served, State& s) {
   s.time += served.options.dt;
 }
 
-void BodyWorker::contact(const Model& served, const State& /*s*/, int k, const Vec3& center,
+void BodyWorker::contact(const Model& served, const State& s, int k, const Vec3& center,
                          double radius, ProbeState* probe) {
-  answer(served, snap_[front_].x, k, center, radius, probe, nullptr);
+  if (served.probes[k].contact != ContactModel::kSurface) {
+    answer(served, snap_[front_].x, k, center, radius, probe, nullptr);
+    return;
+  }
+  // The proxy moves against the served positions (the last tick's answer); s keeps them.
+  std::copy(s.x.begin(), s.x.end(), xs_.begin());
+  answer(served, snap_[front_].x, k, center, radius, probe, &xs_);
 }
 
 }  // namespace conica::loop

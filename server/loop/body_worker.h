@@ -77,7 +77,10 @@ class BodyWorker {
   int since_factor_ = 0;          // body steps since the last factor
   double reach_ = 0;              // m, the region's margin beyond the probe radius
   Snapshot snap_[2];
-  LocalModel estimate_;                       // until a body step's model covers the probe
+  SurfaceScratch surface_;     // the ticks' surface contact (probes with contact SURFACE)
+  std::vector<Vec3> xs_;       // (nodes) m, a reply's positions (surface contact)
+  std::vector<double> share_;  // (probes) N/m, the estimate's stiffness per node
+  LocalModel estimate_;        // until a body step's model covers the probe
   std::vector<std::pair<double, int>> near_;  // (nodes) the estimate's scratch
   int front_ = 0, back_ = 1;
   std::vector<ProbeState> input_;  // the poses of the next body step

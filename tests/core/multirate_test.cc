@@ -183,7 +183,7 @@ TEST(MultirateEstimateTest, OneNodePressedFeelsThePenaltyInSeriesWithTheTissue) 
   const double kc = m.probes[0].stiffness, kt = 0.1 * kc;
   for (double d : {0.1e-3, 0.5e-3, 1e-3}) {
     const Vec3 c = kTop + Vec3(0, 0, kRadius - d);
-    estimate_local_model(m, s.x, 0, c, kRadius, kRadius, &near, &lm);
+    estimate_local_model(m, s.x, 0, c, kRadius, kRadius, kt, &near, &lm);
     ASSERT_GT(lm.num, 1);
     ProbeState p;
     haptic_contact(m, lm, 0, c, kRadius, &p, nullptr);

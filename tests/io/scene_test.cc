@@ -272,9 +272,9 @@ TEST(SceneTest, MultiRateServingIsReadAndChecked) {
     EXPECT_NE(e.find("s.pbtxt:8:1: solver: "), std::string::npos) << solver << ": " << e;
     EXPECT_NE(e.find(why), std::string::npos) << solver << ": " << e;
   }
-  // The local model is the node law's: a surface-contact probe is refused.
+  // The local model leaves friction out: a frictional surface probe is refused.
   auto surface = parse_scene(std::string(kGood) +
-                                 "probe { radius: 0.004 contact: SURFACE }\n"
+                                 "probe { radius: 0.004 contact: SURFACE friction: 0.3 }\n"
                                  "solver { integrator: IMPLICIT_EULER body_rate_hz: 50 }\n",
                              "s.pbtxt", kConfigs);
   const std::string e = surface ? [&] {
@@ -282,7 +282,7 @@ TEST(SceneTest, MultiRateServingIsReadAndChecked) {
     return build_model(surface.value().spec, &m);
   }()
                                  : surface.error();
-  EXPECT_NE(e.find("needs contact NODES"), std::string::npos) << e;
+  EXPECT_NE(e.find("friction is not served multi-rate"), std::string::npos) << e;
 }
 
 // Every field of two scenes, exactly (the writer prints numbers that read back bit for bit).

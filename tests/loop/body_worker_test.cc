@@ -29,13 +29,15 @@ constexpr double kRadius = 0.004;  // m
 const Vec3 kTop(0.01, 0.01, 0.015);
 
 // A 20 x 20 x 15 mm block of the EF30 card (volume and shear terms), tetrahedra, fixed base,
-// served at 1 kHz with the body at 50 Hz; the node stiffness is the multi-rate default.
-Model Block() {
+// served at 1 kHz with the body at 50 Hz; the node stiffness is the multi-rate default (surface
+// contact: the layer and coupling from the tissue).
+Model Block(ContactModel contact = ContactModel::kNodes) {
   BodySpec b = testing_meshes::Ef30Block(true);
   FixedSelector base;
   base.kind = FixedSelector::Kind::kPlane;
   b.fixed.push_back(base);
   b.probes.push_back(ProbeSpec{kRadius, 0});
+  b.probes.back().contact = contact;
   b.options.integrator = Integrator::kImplicitEuler;
   b.options.mass_damping = 20;
   b.options.newton_iterations = 4;
@@ -57,10 +59,12 @@ Vec3 Path(int tick) {
 
 constexpr int kTicks = 650;
 
-// Reference: the body stepped every tick (computed once).
-const std::vector<Vec3>& ReferenceForce() {
-  static const std::vector<Vec3> force = [] {
-    Model ref_model = Block();
+// Reference: the body stepped every tick (computed once per contact model). With surface contact
+// the force is the proxy's of the tick's step (moved against the nodes the last tick left), as
+// the served tick's is.
+std::vector<Vec3> ReferenceOf(ContactModel contact) {
+  {
+    Model ref_model = Block(contact);
     ref_model.options.body_rate_hz = 0;
     State ref = make_state(ref_model);
     Workspace ws(ref_model);
@@ -69,12 +73,17 @@ const std::vector<Vec3>& ReferenceForce() {
       set_probe(ref, 0, Path(t));
       step(ref_model, ref, ws);
       ProbeState p = ref.probes[0];
-      probe_contact(ref_model, ref.x, 0, Path(t), kRadius, &p);
+      if (contact == ContactModel::kNodes) probe_contact(ref_model, ref.x, 0, Path(t), kRadius, &p);
       f[t] = p.force;
     }
     return f;
-  }();
-  return force;
+  }
+}
+
+const std::vector<Vec3>& ReferenceForce(ContactModel contact) {
+  static const std::vector<Vec3> nodes = ReferenceOf(ContactModel::kNodes);
+  static const std::vector<Vec3> surface = ReferenceOf(ContactModel::kSurface);
+  return contact == ContactModel::kNodes ? nodes : surface;
 }
 
 struct Served {
@@ -85,7 +94,7 @@ struct Served {
 // m served along Path, the body thread waited for after each hand-over; errors against the
 // reference (worst: over the ticks above a fifth of the largest force).
 Served Serve(const Model& m) {
-  const std::vector<Vec3>& ref_force = ReferenceForce();
+  const std::vector<Vec3>& ref_force = ReferenceForce(m.probes[0].contact);
   State s = make_state(m);
   BodyWorker worker(m, s);
   EXPECT_EQ(worker.every(), 20);
@@ -127,6 +136,17 @@ TEST(BodyWorkerTest, PerTickForceFollowsTheBodySolvedEveryTick) {
   EXPECT_GE(r.body_steps, static_cast<std::uint64_t>(kTicks / 20 - 1));
 }
 
+// The same with the tool against the deformed surface through its proxy: each tick moves the
+// proxy against the nodes the last answer left and solves the region with the proxy held.
+TEST(BodyWorkerTest, SurfaceContactPerTickForceFollowsTheBodySolvedEveryTick) {
+  const Model m = Block(ContactModel::kSurface);
+  const Served r = Serve(m);
+  EXPECT_GT(r.fmax, 0.05);
+  EXPECT_LT(r.rms, 0.02);
+  EXPECT_LT(r.worst, 0.05);
+  EXPECT_GE(r.body_steps, static_cast<std::uint64_t>(kTicks / 20 - 1));
+}
+
 // The body factored only every fifth body step (and never on CG's count): the local models in
 // between come from a factor up to 80 ms of the press old, with the contact Jacobian that factor
 // held, W is solved again only when the region changes, and the per-tick force still follows the
@@ -157,8 +177,10 @@ INSTANTIATE_TEST_SUITE_P(Solvers, StaleFactorTest,
 
 // The tick and the probe reply allocate nothing, with the body thread stepping beside them and
 // the probe both inside and beyond the local model's reach (the estimate).
-TEST(BodyWorkerTest, TicksAndRepliesAllocateNothing) {
-  const Model m = Block();
+class AllocationTest : public ::testing::TestWithParam<ContactModel> {};
+
+TEST_P(AllocationTest, TicksAndRepliesAllocateNothing) {
+  const Model m = Block(GetParam());
   State s = make_state(m);
   BodyWorker worker(m, s);
   for (int t = 0; t < 300; ++t) {  // into contact, body steps done
@@ -180,6 +202,12 @@ TEST(BodyWorkerTest, TicksAndRepliesAllocateNothing) {
   EXPECT_EQ(allocations, 0);
   EXPECT_GT(worker.frozen_answers(), estimates);
 }
+
+INSTANTIATE_TEST_SUITE_P(Contact, AllocationTest,
+                         ::testing::Values(ContactModel::kNodes, ContactModel::kSurface),
+                         [](const auto& info) {
+                           return info.param == ContactModel::kSurface ? "surface" : "nodes";
+                         });
 
 }  // namespace
 }  // namespace conica::loop
