@@ -8,7 +8,10 @@
 //   build/bin/bench_multirate [--depth M] [--up x|y|z] [--steps N] [--body-rate HZ]
 //                             [--newton N] [--newton-tolerance M] [--cg-tolerance T]
 //                             [--refactor-every N] [--refactor-iterations N]
-//                             [--per-tick] SCENE
+//                             [--per-tick [--realtime] [--replies]] [--surface] SCENE
+// --surface: the probe on surface contact (contact SURFACE) whatever the scene says. --realtime:
+// the per-tick run paced at 1 kHz instead of waiting for each body step (the body is as late as
+// it is on this machine); --replies: a client's probe reply before each tick, as served.
 // The probe touches the node highest along `up` (the middle one of a flat top) and is pressed
 // `depth` over the first half of the steps, then held.
 #include <algorithm>
@@ -62,7 +65,8 @@ void Row(const char* name, const Timer& t) {
 // against the same body stepped every tick with a converged Newton iteration (4 iterations, CG to
 // 1e-10): the per-tick force's RMS and largest relative error (over the ticks above a fifth of
 // the largest force).
-int PerTick(const Model& served, const Vec3& top, int up, double depth) {
+int PerTick(const Model& served, const Vec3& top, int up, double depth, bool realtime,
+            bool replies) {
   const int side = (up + 1) % 3;
   const double r = served.probes[0].radius;
   const double t_press = (depth + 1e-3) / 0.01, t_slide = t_press + 0.2;
@@ -100,10 +104,18 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth) {
   std::vector<Vec3> force(ticks);
   State s = make_state(served);
   loop::BodyWorker worker(served, s);
+  const auto start = std::chrono::steady_clock::now();
   for (int t = 0; t < ticks; ++t) {
     set_probe(s, 0, path(t));
+    if (replies) {  // a client's probe reply before each tick, as served
+      ProbeState& p = s.probes[0];
+      worker.contact(served, s, 0, path(t), p.radius, &p);
+    }
     worker.tick(served, s);
-    while (worker.stepping()) std::this_thread::sleep_for(std::chrono::microseconds(50));
+    if (realtime)  // paced at 1 kHz: the body thread is late as it is
+      std::this_thread::sleep_until(start + std::chrono::microseconds(1000 * (t + 1)));
+    else
+      while (worker.stepping()) std::this_thread::sleep_for(std::chrono::microseconds(50));
     force[t] = s.probes[0].force;
   }
   double fmax = 0, e2 = 0, f2 = 0, worst = 0;
@@ -140,7 +152,7 @@ int main(int argc, char** argv) {
   double depth = 0.004;
   double body_rate = 0, cg_tolerance = 0, newton_tolerance = -1;  // the scene's unless given
   int refactor_every = -1, refactor_iterations = -1, newton = 0;
-  bool per_tick = false;
+  bool per_tick = false, realtime = false, replies = false, surface = false;
   int up = 2, steps = 40;
   std::string path;
   for (int a = 1; a < argc; ++a) {
@@ -153,6 +165,12 @@ int main(int argc, char** argv) {
       body_rate = std::atof(argv[++a]);
     else if (o == "--per-tick")
       per_tick = true;
+    else if (o == "--realtime")
+      realtime = true;
+    else if (o == "--replies")
+      replies = true;
+    else if (o == "--surface")
+      surface = true;
     else if (o == "--newton" && a + 1 < argc)
       newton = std::atoi(argv[++a]);
     else if (o == "--newton-tolerance" && a + 1 < argc)
@@ -169,7 +187,7 @@ int main(int argc, char** argv) {
       path = o;
   }
   Model served;
-  if (!bench::LoadProbedScene(path, &served)) return 2;
+  if (!bench::LoadProbedScene(path, &served, surface)) return 2;
   if (body_rate > 0) served.options.body_rate_hz = body_rate;
   if (cg_tolerance > 0) served.options.cg_tolerance = cg_tolerance;
   if (newton > 0) served.options.newton_iterations = newton;
@@ -194,7 +212,7 @@ int main(int argc, char** argv) {
     if (body.rest[i][up] > high - 1e-9 &&
         (top < 0 || (body.rest[i] - mid).norm() < (body.rest[top] - mid).norm()))
       top = i;
-  if (per_tick) return PerTick(served, body.rest[top], up, depth);
+  if (per_tick) return PerTick(served, body.rest[top], up, depth, realtime, replies);
   const double r = served.probes[0].radius;
   const double reach = served.options.body_reach > 0 ? served.options.body_reach : 0.5 * r;
   auto probe_at = [&](int k) {

@@ -15,12 +15,19 @@ namespace conica::bench {
 
 // The scene at `path` built into *m; false (the reason on stderr) when it cannot be read or built
 // or has no probe.
-inline bool LoadProbedScene(const std::string& path, Model* m) {
+// `surface`: every probe takes contact SURFACE (its stiffness from the tissue), whatever the
+// scene says.
+inline bool LoadProbedScene(const std::string& path, Model* m, bool surface = false) {
   BodySpec spec;
   if (std::string e = io::load_scene(path, &spec); !e.empty()) {
     std::fprintf(stderr, "%s\n", e.c_str());
     return false;
   }
+  if (surface)
+    for (ProbeSpec& p : spec.probes) {
+      p.contact = ContactModel::kSurface;
+      p.stiffness = 0;
+    }
   if (std::string e = build_model(spec, m); !e.empty() || m->probes.empty()) {
     std::fprintf(stderr, "%s\n", e.empty() ? "the scene has no probe" : e.c_str());
     return false;

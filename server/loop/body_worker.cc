@@ -15,8 +15,7 @@ BodyWorker::BodyWorker(const Model& served, const State& rest)
       builder_(body_),
       every_(ticks_per_body_step(served)),
       served_options_(served.options),
-      surface_(served),
-      xs_(served.num_nodes(), Vec3::Zero()) {
+      surface_(served) {
   double r = 0;
   for (const ProbeSpec& p : served.probes) r = std::max(r, p.radius);
   reach_ = served.options.body_reach > 0 ? served.options.body_reach : 0.5 * r;
@@ -145,9 +144,12 @@ void BodyWorker::contact(const Model& served, const State& s, int k, const Vec3&
     answer(served, snap_[front_].x, k, center, radius, probe, nullptr);
     return;
   }
-  // The proxy moves against the served positions (the last tick's answer); s keeps them.
-  std::copy(s.x.begin(), s.x.end(), xs_.begin());
-  answer(served, snap_[front_].x, k, center, radius, probe, &xs_);
+  // Surface contact: as a single-rate reply, the proxy moves toward the pose against the served
+  // positions (the last tick's answer) with the nodes held; the next tick solves the region.
+  probe->center = center;
+  probe->active = true;
+  if (radius > 0) probe->radius = radius;
+  update_proxy(served, k, s.x, &surface_.candidates[k], probe);
 }
 
 }  // namespace conica::loop

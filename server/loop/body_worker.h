@@ -12,8 +12,10 @@
 // step at its start and never waits: a body thread that falls behind leaves the tick on the last
 // local model (late_ticks counts the ticks a step was due but the thread was still busy). A probe
 // farther from where the body step saw it than the local model's reach, or one with no local model
-// yet, is answered by the node law against the body's last positions with each node behind its own
-// share of the tissue (estimate_local_model).
+// yet, is answered by its contact law against the body's last positions with each node behind its
+// own share of the tissue (estimate_local_model). Surface probes (contact SURFACE) keep their proxy
+// on the tick's side: each tick moves it against the served positions, and the body step holds it
+// where the tick left it (body_model, ProbeSpec::hold_proxy).
 #pragma once
 
 #include <atomic>
@@ -40,7 +42,8 @@ class BodyWorker {
 
   // In place of step() at each tick (the loop thread): no allocation, never waits.
   void tick(const Model& served, State& s);
-  // A probe's force at a pose between ticks (the probe reply), like tick's.
+  // A probe's force at a pose between ticks (the probe reply), like tick's; a surface probe's is
+  // its proxy moved against the served positions with the nodes held (as a single-rate reply).
   void contact(const Model& served, const State& s, int k, const Vec3& center, double radius,
                ProbeState* probe);
 
@@ -78,7 +81,6 @@ class BodyWorker {
   double reach_ = 0;              // m, the region's margin beyond the probe radius
   Snapshot snap_[2];
   SurfaceScratch surface_;     // the ticks' surface contact (probes with contact SURFACE)
-  std::vector<Vec3> xs_;       // (nodes) m, a reply's positions (surface contact)
   std::vector<double> share_;  // (probes) N/m, the estimate's stiffness per node
   LocalModel estimate_;        // until a body step's model covers the probe
   std::vector<std::pair<double, int>> near_;  // (nodes) the estimate's scratch
