@@ -13,7 +13,7 @@ cmd=(conica-lab contact --suite --out-dir out/contact)
 mkdir -p out/contact
 start=$(date +%s)
 if [ -n "${CONICA_TABLES:-}" ]; then  # tables from an earlier run of the same command
-  cp "$CONICA_TABLES" out/contact/tables.md
+  [ "$CONICA_TABLES" -ef out/contact/tables.md ] || cp "$CONICA_TABLES" out/contact/tables.md
 else
   "$build/bin/${cmd[0]}" "${cmd[@]:1}" >out/contact/tables.md
 fi
@@ -45,50 +45,77 @@ HEAD
   cat <<'NOTES'
 
 ## Reading the tables (measured at the commit named above)
-- **Felt from the start.** Every press feels force from the first tick of motion (0.005 mm).
-  Force > 0 at every tick from 0.1 mm holds in 22 of 24 presses; it fails for the 10 mm sphere
-  (1 x s) at the quad centre of both cubes: between 13.8 and 14.4 mm of tool depth the tool loses
-  the surface (0 faces, proxy depth = tool depth, force 0 for 132 ticks) while the cell under it
-  gives way, then finds it again.
+"At the previous run" and "was" refer to this page's previous version (Release build of d9eaa27).
+
+- **Felt from the start.** Every press feels force from its second tick of motion (0.010 mm,
+  2.0-2.5e-5 N); at the first (0.005 mm) the force is 0 in all 24 (at the previous run every press
+  felt force at 0.005 mm). Force > 0 at every tick from 0.1 mm holds in 22 of 24 presses; it fails
+  for the 10 mm sphere (1 x s) at the quad centre of both cubes: the tool loses the surface twice,
+  at 13.90-14.09 mm and 14.42-14.53 mm of tool depth (0 faces, proxy depth = tool depth, force 0;
+  53 ticks on paper-cube, 56 on paper-cube-hooke), while the cell under it gives way, then finds
+  it again. In the 1-3 ticks before each gap the force is slightly negative (at most 3.6e-5 N,
+  pulling the tool in). The previous page's notes gave one gap, 13.8-14.4 mm, 132 ticks.
 - **Not monotone.** Every press falls far below its running maximum somewhere (the "max
-  shortfall" column: 39-92 %, at 8.6-18.4 mm): the lattice under the tool gives way (pair springs
-  lose shear stability under large compression, README). Tick to tick the falls are gradual (at
-  most 5.7 % of the running maximum in one tick). The barrier holds: the deepest penetration is
-  0.19 R (barrier 0.25 R); no rollbacks with the scenes' integrators.
-- **Holds.** std/mean over the hold's second half is below 0.5 % in 17 of 24 presses; the
-  others: paper-cube-hooke, 5 mm sphere at the node, 19.8 %; the 20 mm sphere at the quad centre
-  of both cubes, 3.4 %; anisotropic-block 0.9-2.9 % (5 mm and 10 mm at the quad centre, 20 mm at
-  both positions).
+  shortfall" column: 41-88 % in the 22 presses that keep the surface, 100 % in the two above; at
+  8.8-18.8 mm): the lattice under the tool gives way (pair springs lose shear stability under
+  large compression, README). Tick to tick the falls are gradual, and fewer than at the previous
+  run: at most 2.7 % of the running maximum in one tick (was 5.8 %), 0-28 falls of more than 1 %
+  per press (was 0-180), 253 over the 24 presses (was 1251). The barrier holds: the deepest
+  penetration is 0.19 R (barrier 0.25 R); no rollbacks with the scenes' integrators.
+- **Holds.** std/mean over the hold's second half is below 0.5 % in 20 of 24 presses (16 of 24 at
+  the previous run); the others: the 20 mm sphere at the quad centre of paper-cube, 2.5 %, and of
+  paper-cube-hooke, 2.2 % (both 3.4 % at the previous run); anisotropic-block, 0.69 % (5 mm at the
+  quad centre, was 2.9 %) and 1.3 % (20 mm at the node, was 2.1 %). The 5 mm sphere at the node
+  holds to 0.012 % on both cubes (was 9.1 % on paper-cube, 21 % on paper-cube-hooke). The hold
+  force of these four is 25-85 % of the force at the end of the press: 0.044 N against 0.18 N
+  (paper-cube) and 0.15 N (paper-cube-hooke), 0.063 N against 0.118 N and 0.115 N against
+  0.135 N (anisotropic-block).
 - **Hertz (sphere).** The plate compression gives E = 1031.9 Pa, equal to the homogenised cell's,
   and nu = 0.183 at both spacings, so E* = 1067.7 Pa (the model's own contact_modulus, from the
   network's nu = 1/4 estimate, is 871.5 Pa, 18 % lower). Against Hertz with that E*: +35 % at
   0.1 R on the 5 mm lattice, +5.1 % on the 2.5 mm lattice; over d in [0.02 R, 0.1 R] the mean
-  error falls from 42 % to 12.8 % and the largest (at the shallow end, where the contact radius
-  sqrt(R d) = 1.4 mm is below the spacing) from 64 % to 20 %. Converging under refinement; the
-  10 % goal is met at 0.1 R on the 2.5 mm lattice only, not over the range. The contact radius is
-  0.105 of the 30 mm thickness at 0.1 R; no finite-thickness correction is applied.
-- **Sneddon (flat punch): failed, not measured.** The punch's proxy never enters the surface:
-  its reference point for the swept move is its face centre, which has to go below the rest
-  surface to press it, and the sweep stops it short of that surface. Proxy depth stays 0, no face
-  is touched, the body gets no force, and the device force is the coupling spring alone
-  (k_vc d: 0.436 N at 1 mm). A core limitation of update_proxy (core/contact.cc) for the punch;
-  the unit tests cover tool_contact for the punch, not its proxy.
-- **Drag.** The normal-force ripple over the middle three spacings is 30-102 %, at constant
+  error falls from 42 % to 13.0 % and the largest (at the shallow end, d = 0.25 mm, where the
+  contact radius sqrt(R d) = 1.6 mm is below the spacing) from 64 % to 22 %. Converging under
+  refinement; the 10 % goal is met at 0.1 R on the 2.5 mm lattice only, not over the range. The
+  contact radius is 0.105 of the 30 mm thickness at 0.1 R; no finite-thickness correction is
+  applied.
+- **Sneddon (flat punch, a = 5 mm).** Measured: the punch's proxy enters the surface (proxy depth
+  0.965 and 0.969 mm at 1 mm of tool depth, 20 and 42 faces). The previous page's notes called the
+  punch "failed, not measured"; its tables already had punch rows. Against Sneddon F = 2 a E* d
+  with the same E*: +49 % at 0.1 R on the 5 mm lattice, +29 % on the 2.5 mm lattice; over
+  d in [0.02 R, 0.1 R] the mean error is 54 % and 47 % (was 61 % and 48 %), the largest (at the
+  shallow end, d = 0.24 mm) 68 % and 106 % (was 94 % and 98 %). Far from the 10 % goal on both
+  lattices, and not settled: the punch's force still falls at each depth level's last held step
+  (at 0.1 R by 2.7 % on the 5 mm lattice, 6.0 % on the 2.5 mm lattice; see the quasi-static
+  item). The contact radius is 0.167 of the thickness; no finite-thickness correction is applied.
+- **Drag.** The normal-force ripple over the middle three spacings is 29.5-105 %, at constant
   target height across a lattice whose cells under the tool are far from homogeneous at these
-  depths. At 1 R depth the frictionless tool also feels a mean force against the motion (up to
-  0.043 N, anisotropic block, 10 mm sphere).
-- **Integrators.** Symplectic and implicit Euler hold steady (std/mean 0.007 % and 0.002 %).
-  Explicit Euler blows up on the paper cube at 1 kHz (42 rollbacks, the tool at R penetration);
-  the same press with the node contact blows up too (22 rollbacks), so the integrator, not the
-  surface contact, is what fails there.
+  depths. The 0.2 R drags and the 2.5 mm sphere at 1 R have the previous run's ripple
+  (29.5-47.8 %); the 10 mm sphere at 1 R moved: paper-cube 50.9 % (was 102 %), paper-cube-hooke
+  79.5 % (was 85.3 %), anisotropic-block 105 % (was 60.6 %). At 1 R depth the frictionless tool
+  also feels a mean force against the motion (up to 0.046 N, anisotropic block, 10 mm sphere;
+  0.0063 N and 0.0095 N on the two cubes).
+- **Integrators.** Symplectic and implicit Euler hold steady (std/mean 0.006 % and 0.002 %).
+  Explicit Euler on the paper cube at 1 kHz now gets through the press (0.0608 N at its end,
+  symplectic 0.0605 N; -13.5 N at the previous run) but not the hold: the force swings with
+  growing amplitude (0.051-0.071 N in the hold's first 0.1 s, 0.020-0.126 N at 0.2-0.3 s), the
+  tool loses the surface 0.32 s into the hold, and over the last second the force averages
+  -11.6 N (std/mean 208 %), with the tool at R penetration (0.999 R) and 26 rollbacks (1047 at
+  the previous run). The same press with the node contact blows up too (22 rollbacks, as at the
+  previous run), so the integrator, not the surface contact, is what fails there.
 - **Quasi-static.** The press at 5 mm/s and at 2.5 mm/s (paper cube, 2.5 mm sphere at the node)
-  agree within 0.1 % at 12.5, 25, 37.5, 75, 87.5 and 100 % of the depth and within 0.6 % at
-  62.5 %; at 50 % (10 mm), in the middle of the collapse, they differ by 16 %: the collapse itself
-  is rate dependent. The Hertz presses are static solves (implicit steps of 1 s); reading each
-  depth level after 5 or after 10 held steps changes the 5 mm lattice's errors by less than 0.1 %
-  (41.98 / 64.17 / +35.16 % against 42.07 / 64.31 / +35.23 %). Without the held steps the reading
-  depends on the increment: a 50-step ramp read +105 % at 0.1 R and a 100-step ramp +68 %, since
-  each proxy stage presses into the surface the body had before its step.
+  agree within 0.3 % at 12.5, 25, 37.5, 62.5, 75, 87.5 and 100 % of the depth (at the previous
+  run within 0.1 % at six of these and 0.6 % at 62.5 %); at 50 % (10 mm), at the start of the
+  collapse (max shortfall 72.8 % at 11.29 mm in the press table), they differ by 9.8 % (was 16 %):
+  the collapse itself is rate dependent. The sphere's Hertz presses are static solves (implicit
+  steps of 1 s): reading each depth level after 10 held steps instead of 5 changes the 5 mm
+  lattice's errors by less than 0.1 % (42.07 / 64.31 / +35.23 % against 42.04 / 64.30 /
+  +35.14 %). The punch's are not: 10 held steps give 45.97 / 47.73 / +44.63 % against 54.32 /
+  68.10 / +49.22 %. Without the held steps the sphere's reading depends on the increment: a
+  50-step ramp read +104 % at 0.1 R and a 100-step ramp +68 %, since each proxy stage presses into
+  the surface the body had before its step. (Held steps and ramps: separate runs of `conica-lab
+  contact --scene configs/paper-cube.pbtxt --experiment hertz --spacing-mm 5` with
+  `--hertz-settle 10`, or `--hertz-settle 0 --hertz-steps 50` / `100`, same build.)
 NOTES
 } >docs/contact-measurements.md
 echo "wrote docs/contact-measurements.md (${secs} s)"
