@@ -142,7 +142,6 @@ LocalModelBuilder::LocalModelBuilder(const Model& m)
     : factor_(std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)),
       held_(m.probes.size(), std::vector<Mat3>(m.num_nodes(), Mat3::Zero())),
       layer_force_(m.num_nodes(), Vec3::Zero()),
-      layer_block_(m.num_nodes(), Mat3::Zero()),
       regions_(m.probes.size()) {
   near_.reserve(std::max(m.num_nodes(), 3 * static_cast<int>(m.surface.size())));
 }

@@ -29,7 +29,10 @@
 // implicit system takes), so Newton converges to the exact (1) at a linear rate where the blocks
 // leave out the layer's curvature. The device gets the coupling force and its stiffness with the
 // nodes held; the proxy's next update sees the nodes this tick moved (a one-tick stagger, as in
-// the single-rate step).
+// the single-rate step). A fresh model (a body step just handed over, in equilibrium with the
+// proxy its step held) is first solved against the last tick's proxy, then the proxy moves. Each
+// solve stops at 1e-7 R of node motion or after a fixed number of layer evaluations, so the tick
+// stays bounded. The body step holds the proxy where the ticks left it (body_model).
 #pragma once
 
 #include <cstdint>
@@ -111,7 +114,6 @@ class LocalModelBuilder {
   std::vector<std::pair<double, int>> near_;
   std::vector<std::vector<Mat3>> held_;  // (probes x nodes) N/m: B0 of the factored system
   std::vector<Vec3> layer_force_;        // (nodes) N, surface contact's f0
-  std::vector<Mat3> layer_block_;        // (nodes) N/m
   std::vector<Region> regions_;          // (probes)
   std::uint64_t generation_ = 0;         // W's key: 0 without a usable factor
   std::uint64_t factorizations_ = 0, failures_ = 0, solves_ = 0;
