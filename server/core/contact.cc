@@ -365,6 +365,49 @@ Vec3 carried_point(const Model& m, const std::vector<Vec3>& x, int t, const Vec3
          triangle_frame(m, x, t) * offset;
 }
 
+// The point of the listed surface triangles (all when list is null) nearest y at positions x,
+// with its triangle and barycentric coordinates (*tri unchanged when count is 0).
+Vec3 nearest_surface_point(const Model& m, const std::vector<Vec3>& x, const int* list, int count,
+                           const Vec3& y, int* tri, Vec3* bary) {
+  double best = std::numeric_limits<double>::infinity();
+  Vec3 at = y;
+  for (int q = 0; q < count; ++q) {
+    const int t = list ? list[q] : q;
+    const auto& f = m.surface[t];
+    Vec3 b;
+    const Vec3 c = closest_on_triangle(y, x[f[0]], x[f[1]], x[f[2]], &b);
+    const double d2 = (c - y).squaredNorm();
+    if (d2 < best) {
+      best = d2;
+      at = c;
+      *tri = t;
+      *bary = b;
+    }
+  }
+  return at;
+}
+
+// The surface point the proxy rides on until its next update: the nearest point of the listed
+// triangles when it is within `reach` of the proxy (p->anchor -1 otherwise).
+void anchor_proxy(const Model& m, const std::vector<Vec3>& x, const int* list, int count,
+                  double reach, ProbeState* p) {
+  p->anchor = -1;
+  int t = -1;
+  Vec3 b;
+  const Vec3 near = nearest_surface_point(m, x, list, count, p->proxy, &t, &b);
+  if (t >= 0 && (near - p->proxy).norm() < reach) {
+    p->anchor = t;
+    p->anchor_bary = b;
+    p->anchor_offset = triangle_frame(m, x, t).inverse() * (p->proxy - near);
+  }
+}
+
+// The device's stiffness dF/dt = k_vc (k_vc I - K)^-1 K: the coupling k_vc in series with the
+// proxy's contact stiffness K, nodes held.
+Mat3 coupled_stiffness(double kvc, const Mat3& K) {
+  return kvc * (kvc * Mat3::Identity() - K).inverse() * K;
+}
+
 }  // namespace
 
 double probe_radius(const Model& m, int k, const ProbeState& p) {
@@ -592,24 +635,6 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   // Start: the last proxy carried by the surface point it rode on, or, for a tool just placed,
   // the target itself or (inside the body) the nearest point of the surface.
   Vec3 start = p->proxy;
-  auto nearest = [&](const Vec3& y, const int* list, int count, int* tri, Vec3* bary) {
-    double best = std::numeric_limits<double>::infinity();
-    Vec3 at = y;
-    for (int q = 0; q < count; ++q) {
-      const int t = list ? list[q] : q;
-      const auto& f = m.surface[t];
-      Vec3 b;
-      const Vec3 c = closest_on_triangle(y, x[f[0]], x[f[1]], x[f[2]], &b);
-      const double d2 = (c - y).squaredNorm();
-      if (d2 < best) {
-        best = d2;
-        at = c;
-        *tri = t;
-        *bary = b;
-      }
-    }
-    return at;
-  };
   if (!p->proxy_placed) {
     // A tool just placed starts where it touches the surface at most: outside the body, backed
     // off along the nearest face's normal until it no longer overlaps it, so that it sinks in at
@@ -618,7 +643,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     if (nt > 0) {
       int t = 0;
       Vec3 b;
-      const Vec3 at = nearest(target, nullptr, nt, &t, &b);
+      const Vec3 at = nearest_surface_point(m, x, nullptr, nt, target, &t, &b);
       const bool inside = inside_surface(m, x, target);
       const double dist = (target - at).norm();
       // Away from the surface: along the nearest face's normal from inside, else straight away
@@ -642,9 +667,9 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   const int* cand = candidates ? candidates->triangles.data() : nullptr;
   const int nc = candidates ? static_cast<int>(candidates->triangles.size()) : nt;
   // The point riding on the surface nearest y among the listed triangles (triangle, barycentric
-  // coordinates, offset in its frame), for the anchor and the stick point.
+  // coordinates, offset in its frame), for the stick point.
   auto attach = [&](const Vec3& y, int* tri, Vec3* bary, Vec3* offset) {
-    const Vec3 near = nearest(y, cand, nc, tri, bary);
+    const Vec3 near = nearest_surface_point(m, x, cand, nc, y, tri, bary);
     if (*tri >= 0) *offset = triangle_frame(m, x, *tri).inverse() * (y - near);
     return near;
   };
@@ -773,21 +798,9 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   // dF/dt = k_vc (k_vc I - K')^-1 K': the coupling in series with the layer (and, sticking, the
   // friction spring: K' = K - k_t P), nodes held.
   if (c.faces > 0) {
-    const Mat3 Kp = c.stiffness - (sticking ? Mat3(kt * P) : Mat3::Zero());
-    p->stiffness = kvc * (kvc * Mat3::Identity() - Kp).inverse() * Kp;
+    p->stiffness = coupled_stiffness(kvc, c.stiffness - (sticking ? Mat3(kt * P) : Mat3::Zero()));
   }
-  // The surface point the proxy rides on until the next update.
-  p->anchor = -1;
-  if (nc > 0) {
-    int t = -1;
-    Vec3 b, offset;
-    const Vec3 near = attach(at, &t, &b, &offset);
-    if (t >= 0 && (near - at).norm() < reach) {
-      p->anchor = t;
-      p->anchor_bary = b;
-      p->anchor_offset = offset;
-    }
-  }
+  anchor_proxy(m, x, cand, nc, reach, p);
 }
 
 void hold_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCandidates* candidates,
@@ -814,24 +827,8 @@ void hold_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCandid
   p->contacts = c.faces;
   p->force = kvc * (p->proxy - p->center);
   p->stiffness.setZero();
-  if (c.faces > 0)
-    p->stiffness = kvc * (kvc * Mat3::Identity() - c.stiffness).inverse() * c.stiffness;
-  // The surface point the proxy rides on from here.
-  p->anchor = -1;
-  double best = reach * reach;
-  for (int q = 0; q < nc; ++q) {
-    const int t = cand ? cand[q] : q;
-    const auto& f = m.surface[t];
-    Vec3 b;
-    const Vec3 near = closest_on_triangle(p->proxy, x[f[0]], x[f[1]], x[f[2]], &b);
-    const double d2 = (near - p->proxy).squaredNorm();
-    if (d2 < best) {
-      best = d2;
-      p->anchor = t;
-      p->anchor_bary = b;
-      p->anchor_offset = triangle_frame(m, x, t).inverse() * (p->proxy - near);
-    }
-  }
+  if (c.faces > 0) p->stiffness = coupled_stiffness(kvc, c.stiffness);
+  anchor_proxy(m, x, cand, nc, reach, p);
 }
 
 }  // namespace conica

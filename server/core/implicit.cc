@@ -488,14 +488,17 @@ bool layer_in_contact(const Model& m, const State& s) {
   return false;
 }
 
-// |h^2 f - M (x1 - x0 - h v0)|^2 on free axes, the forces evaluated at s.x.
+// -h^2 times backward Euler's residual at node i, h^2 f - M (x1 - x0 - h v0), the forces
+// evaluated at s.x (all axes).
+Vec3 step_residual(const Model& m, const State& s, const Workspace& ws, double h, int i) {
+  return h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.system.x0[i] - h * ws.system.v0[i]);
+}
+
+// Its squared norm on free axes.
 double residual_norm2(const Model& m, const State& s, const Workspace& ws, double h) {
   double r2 = 0;
-  for (int i = 0; i < m.num_nodes(); ++i) {
-    const Vec3 res =
-        h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.system.x0[i] - h * ws.system.v0[i]);
-    r2 += res.cwiseProduct(m.free_axes[i]).squaredNorm();
-  }
+  for (int i = 0; i < m.num_nodes(); ++i)
+    r2 += step_residual(m, s, ws, h, i).cwiseProduct(m.free_axes[i]).squaredNorm();
   return r2;
 }
 
@@ -536,8 +539,7 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
     evaluated = false;
     // rhs = -h^2 R = h^2 f - M (x1 - x0 - h v0), on free axes.
     for (int i = 0; i < nn; ++i) {
-      const Vec3 res =
-          h * h * ws.force[i] - m.mass[i] * (s.x[i] - ws.system.x0[i] - h * ws.system.v0[i]);
+      const Vec3 res = step_residual(m, s, ws, h, i);
       for (int c = 0; c < 3; ++c) ws.system.rhs[c * nn + i] = res[c] * ws.system.free[c * nn + i];
     }
     ws.system.h2 = h * h;

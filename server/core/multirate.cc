@@ -354,7 +354,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
 
   ContactCandidates* cand = layer ? &surface->candidates[k] : nullptr;
   // f and dfdc = df/dx at x0 + dx: the node law, or the layer at the held proxy (dfdc = -B, its
-  // lumped blocks); returns whether node a is in contact.
+  // lumped blocks; the region's positions x0 + dx go into x, where the layer reads them).
   auto forces = [&]() {
     if (layer) {
       for (int a = 0; a < num; ++a) {
@@ -483,10 +483,9 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   solve();
   lm.newton_iterations = it;
   lm.residual = res;
-  if (layer) {  // the device has the coupling force and stiffness of the proxy's update
-    for (int a = 0; a < num; ++a) (*x)[lm.nodes[a]] = lm.x0[a] + lm.dx[a];
-    return;
-  }
+  // Surface contact: the device has the coupling force and stiffness of the proxy's update, and
+  // x the region at x0 + dx (the last evaluation wrote it: solve() ends on its final iterate).
+  if (layer) return;
 
   probe->force.setZero();
   probe->stiffness.setZero();
