@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "lab_run.h"
@@ -70,6 +71,28 @@ TEST(LabSweep, StabilityShardsAndMergeEqualOneProcessByteForByte) {
   r = run_lab(kStability + "'" + sh.string() + "' --merge");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(slurp(sh.string() + ".csv"), single);
+}
+
+// A job array starts its shards at once: each finds no unit store and writes the same key file.
+// Eight shards started together all succeed and merge to the one-process CSV.
+TEST(LabSweep, ShardsStartedTogetherAllSucceed) {
+  const fs::path one = Temp("stab_one_c"), sh = Temp("stab_sh_c");
+  auto r = run_lab(kStability + "'" + one.string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  constexpr int kShards = 8;
+  std::vector<testing::LabRun> runs(kShards);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kShards; ++i)
+    threads.emplace_back([&, i] {
+      runs[i] = run_lab(kStability + "'" + sh.string() + "' --shard " + std::to_string(i) + "/" +
+                        std::to_string(kShards));
+    });
+  for (std::thread& t : threads) t.join();
+  for (int i = 0; i < kShards; ++i)
+    EXPECT_EQ(runs[i].status, 0) << "shard " << i << ": " << runs[i].output;
+  r = run_lab(kStability + "'" + sh.string() + "' --merge");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(slurp(sh.string() + ".csv"), slurp(one.string() + ".csv"));
 }
 
 TEST(LabSweep, ARerunResumesTheMergeNamesWhatIsMissingOtherOptionsAreRefused) {

@@ -1,5 +1,8 @@
 #include "app/lab/lab_sweep.h"
 
+#include <unistd.h>
+
+#include <atomic>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -36,7 +39,11 @@ bool parse_shard(const std::string& s, int* i, int* n) {
 }
 
 std::string write_atomic(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".part";
+  // A temporary name of this writer alone: shards of one sweep start together and write the
+  // same key file; with one shared temporary name, one shard's rename took the other's file.
+  static std::atomic<unsigned> serial{0};
+  const std::string tmp =
+      path + ".part." + std::to_string(::getpid()) + "." + std::to_string(serial.fetch_add(1));
   if (std::string e = io::write_text_file(tmp, text); !e.empty()) return e;
   std::error_code ec;
   fs::rename(tmp, path, ec);
