@@ -511,6 +511,18 @@ std::string build_model(const BodySpec& spec, Model* out) {
     p.axis.normalize();
     if (m.options.body_rate_hz > 0 && p.friction > 0)
       return which + "friction is not served multi-rate (solver body_rate_hz): set friction 0";
+    if (p.shape != ToolShape::kSphere && p.contact == ContactModel::kNodes)
+      return which + "a punch or plane needs contact: SURFACE";
+    // A plane touches the body wherever it meets it: the region of the active region and of the
+    // multi-rate tick is a ball about the tool.
+    if (p.shape == ToolShape::kPlane && m.options.body_rate_hz > 0)
+      return which +
+             "a PLANE tool is not served multi-rate (solver body_rate_hz): its contact is "
+             "not local";
+    if (p.shape == ToolShape::kPlane && m.options.active_region)
+      return which +
+             "a PLANE tool needs every node integrated (no solver.active_region): its "
+             "contact is not local";
     if (p.contact == ContactModel::kNodes && p.stiffness <= 0)
       p.stiffness = m.options.body_rate_hz > 0 ? multirate_node_stiffness() : k_default;
   }

@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace conica {
 namespace {
@@ -275,6 +276,44 @@ void punch_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, double R,
   acc.flush();
 }
 
+// A plane (through c, pushing along unit a; the tool fills {y : (y - c).a < 0}) against a
+// triangle: the part of the triangle behind the plane (g = -(y - c).a > 0, linear on the
+// triangle) is clipped out exactly, a triangle or a quadrilateral, split from its first corner
+// into triangles that each get Dunavant's rule (the integrand p(g) is smooth there: the kink of
+// p at g = 0 lies on the clipped boundary). The depth is exact: the largest g at a corner.
+void plane_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator<PunchTool>& acc) {
+  const Vec3& ax = acc.tool.axis;
+  const Vec3& c = acc.tool.c;
+  const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+  if (!(area > 0)) return;
+  const double g[3] = {-(p0 - c).dot(ax), -(p1 - c).dot(ax), -(p2 - c).dot(ax)};
+  // The clipped polygon's corners in barycentric coordinates (at most four).
+  Vec3 L[4];
+  int n = 0;
+  for (int i = 0; i < 3; ++i) {
+    const int j = (i + 1) % 3;
+    if (g[i] > 0) L[n++] = Vec3::Unit(i);
+    if ((g[i] > 0) != (g[j] > 0)) {
+      const double s = g[i] / (g[i] - g[j]);  // the edge i -> j crosses the plane here
+      L[n++] = (1 - s) * Vec3::Unit(i) + s * Vec3::Unit(j);
+    }
+  }
+  if (n < 3) return;
+  for (int q = 1; q + 1 < n; ++q) {
+    const Vec3 e1 = L[q] - L[0], e2 = L[q + 1] - L[0];
+    const double frac = std::abs(e1[1] * e2[2] - e1[2] * e2[1]);  // sub-area / triangle area
+    if (!(frac > 0)) continue;
+    for (int k = 0; k < 6; ++k) {
+      const Vec3 l =
+          kTriPoints[k][0] * L[0] + kTriPoints[k][1] * L[q] + kTriPoints[k][2] * L[q + 1];
+      const double lw[3] = {l[0], l[1], l[2]};
+      acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, lw, area * frac * kTriW[k]);
+    }
+  }
+  if (acc.touched) acc.depth = std::max({acc.depth, g[0], g[1], g[2]});
+  acc.flush();
+}
+
 // Closest point to p on triangle (a, b, c) (Ericson, Real-Time Collision Detection 5.1.5), with
 // its barycentric coordinates.
 Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, Vec3* bary) {
@@ -429,6 +468,7 @@ bool tool_touches(const Model& m, int k, double R, const Vec3& pose, const std::
   const Vec3& a = m.probes[k].axis;
   const Mat3 P = Mat3::Identity() - a * a.transpose();
   const bool behind = (p0 - pose).dot(a) < 0 || (p1 - pose).dot(a) < 0 || (p2 - pose).dot(a) < 0;
+  if (m.probes[k].shape == ToolShape::kPlane) return behind;
   return behind &&
          closest_on_triangle(Vec3::Zero(), P * (p0 - pose), P * (p1 - pose), P * (p2 - pose), &b)
                  .squaredNorm() < R * R;
@@ -507,7 +547,10 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
         continue;
       const PunchTool tool{pose, axis};
       Accumulator<PunchTool> acc{layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}, terms};
-      punch_triangle(p0, p1, p2, R, acc);
+      if (spec.shape == ToolShape::kPlane)
+        plane_triangle(p0, p1, p2, acc);
+      else
+        punch_triangle(p0, p1, p2, R, acc);
       touched = acc.touched;
     }
     out->faces += touched;
@@ -560,20 +603,25 @@ double segment_distance2(const Vec3& y, const Vec3& a, const Vec3& b) {
   return (y - (a + s * seg)).squaredNorm();
 }
 
-// True when triangle t's bounding sphere comes within `reach` of the sweep a -> b.
+// True when triangle t's bounding sphere comes within `reach` of the sweep a -> b of the tool's
+// pose; for a plane (plane: its unit axis, the tool filling the half-space behind it), within
+// `reach` of the half-space at either end of the sweep (a plane moves by translation only).
 bool within_reach(const Model& m, const std::vector<Vec3>& x, int t, const Vec3& a, const Vec3& b,
-                  double reach) {
+                  double reach, const Vec3* plane) {
   const auto& f = m.surface[t];
   Vec3 cen;
-  const double lim = reach + triangle_bound(x[f[0]], x[f[1]], x[f[2]], &cen);
+  const double rad = triangle_bound(x[f[0]], x[f[1]], x[f[2]], &cen);
+  if (plane) return (cen - a).dot(*plane) - rad < reach || (cen - b).dot(*plane) - rad < reach;
+  const double lim = reach + rad;
   return segment_distance2(cen, a, b) < lim * lim;
 }
 
 // The broad phase (ContactCandidates): c->triangles = the triangles within `reach` of the sweep
-// start -> target, from the list of the last pass while it provably holds them all, else after
-// a new pass over the surface.
+// start -> target (plane: the unit axis of a plane tool, else null), from the list of the last
+// pass while it provably holds them all, else after a new pass over the surface.
 void gather_candidates(const Model& m, const std::vector<Vec3>& x, const Vec3& start,
-                       const Vec3& target, double reach, double skin, ContactCandidates* c) {
+                       const Vec3& target, double reach, double skin, const Vec3* plane,
+                       ContactCandidates* c) {
   const int ns = static_cast<int>(m.surface_nodes.size());
   bool keep = c->model == &m && c->reach_pass == reach && c->skin_pass == skin &&
               static_cast<int>(c->x_pass.size()) == ns;
@@ -589,7 +637,7 @@ void gather_candidates(const Model& m, const std::vector<Vec3>& x, const Vec3& s
     c->near.clear();
     const int nt = static_cast<int>(m.surface.size());
     for (int t = 0; t < nt; ++t)
-      if (within_reach(m, x, t, start, target, reach + skin)) c->near.push_back(t);
+      if (within_reach(m, x, t, start, target, reach + skin, plane)) c->near.push_back(t);
     c->x_pass.resize(ns);
     for (int j = 0; j < ns; ++j) c->x_pass[j] = x[m.surface_nodes[j]];
     c->start_pass = start;
@@ -601,7 +649,7 @@ void gather_candidates(const Model& m, const std::vector<Vec3>& x, const Vec3& s
   }
   c->triangles.clear();
   for (int t : c->near)
-    if (within_reach(m, x, t, start, target, reach)) c->triangles.push_back(t);
+    if (within_reach(m, x, t, start, target, reach, plane)) c->triangles.push_back(t);
 }
 
 }  // namespace
@@ -629,6 +677,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   const bool was_placed = p->proxy_placed;
   const int nt = static_cast<int>(m.surface.size());
   const bool spec_is_sphere = m.probes[k].shape == ToolShape::kSphere;
+  const Vec3* plane = m.probes[k].shape == ToolShape::kPlane ? &m.probes[k].axis : nullptr;
   // The proxy never moves deeper than this into the surface it sees (the barrier's linear
   // extension starts there).
   const double g_stop = 0.9 * kContactDepthFraction * R;
@@ -640,7 +689,14 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     // off along the nearest face's normal until it no longer overlaps it, so that it sinks in at
     // the depth rate like any other move instead of striking the surface at once.
     start = target;
-    if (nt > 0) {
+    if (plane) {
+      // A plane: moved back along its axis until every surface node is at least `clear` in
+      // front of it.
+      const double clear = 1e-3 * R;
+      double front = std::numeric_limits<double>::infinity();
+      for (int j : m.surface_nodes) front = std::min(front, (x[j] - target).dot(*plane));
+      if (front < clear) start = target + (front - clear) * *plane;
+    } else if (nt > 0) {
       int t = 0;
       Vec3 b;
       const Vec3 at = nearest_surface_point(m, x, nullptr, nt, target, &t, &b);
@@ -662,7 +718,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   const double reach = kCandidateReach * R;
   if (candidates) {
     candidates->reserve(m);
-    gather_candidates(m, x, start, target, reach, kCandidateSkin * R, candidates);
+    gather_candidates(m, x, start, target, reach, kCandidateSkin * R, plane, candidates);
   }
   const int* cand = candidates ? candidates->triangles.data() : nullptr;
   const int nc = candidates ? static_cast<int>(candidates->triangles.size()) : nt;
@@ -814,7 +870,8 @@ void hold_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCandid
   if (candidates) {
     candidates->reserve(m);
     candidates->triangles.clear();
-    gather_candidates(m, x, p->proxy, p->proxy, reach, kCandidateSkin * R, candidates);
+    const Vec3* plane = m.probes[k].shape == ToolShape::kPlane ? &m.probes[k].axis : nullptr;
+    gather_candidates(m, x, p->proxy, p->proxy, reach, kCandidateSkin * R, plane, candidates);
   }
   const int nt = static_cast<int>(m.surface.size());
   const int* cand = candidates ? candidates->triangles.data() : nullptr;

@@ -111,6 +111,8 @@ enum class ToolShape : std::uint8_t {
   kSphere = 0,  // a ball of `radius` around the pose
   kPunch = 1,  // a flat-ended cylinder of `radius`: its end face centred at the pose, pushing along
                // `axis`
+  kPlane = 2,  // an unbounded flat face through the pose pushing along `axis` (the tool fills the
+               // half-space behind it); `radius` is its length scale (layer depth, defaults)
 };
 enum class ContactModel : std::uint8_t {
   kNodes = 0,    // a sphere against the nodes, a penalty per node (core/step.h)
@@ -123,7 +125,8 @@ struct ProbeSpec {
                          // penetration, 0: from the tissue (kContactStiffnessFactor E* / R)
   ContactModel contact = ContactModel::kNodes;
   ToolShape shape = ToolShape::kSphere;
-  Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, punch: the direction it pushes along
+  Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, punch and plane: the direction it
+                                                     // pushes along
   double coupling = 0;      // kSurface: N/m, virtual coupling device-proxy; 0: kCouplingFactor
                             // E* R
   double friction = 0;      // kSurface: Coulomb coefficient mu (>= 0), stick and slip

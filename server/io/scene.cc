@@ -354,7 +354,7 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
         return Error{where + "unknown contact model"};
     }
     if (spec.contact == ContactModel::kNodes && p.shape() != v1::SPHERE)
-      return Error{where + "shape PUNCH needs contact: SURFACE"};
+      return Error{where + "shape " + v1::ToolShape_Name(p.shape()) + " needs contact: SURFACE"};
     if (spec.contact == ContactModel::kNodes && p.friction() > 0)
       return Error{where + "friction needs contact: SURFACE"};
     switch (p.shape()) {
@@ -363,6 +363,9 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
         break;
       case v1::PUNCH:
         spec.shape = ToolShape::kPunch;
+        break;
+      case v1::PLANE:
+        spec.shape = ToolShape::kPlane;
         break;
       default:
         return Error{where + "unknown shape"};

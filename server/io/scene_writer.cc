@@ -90,7 +90,9 @@ void set_probe(const ProbeSpec& p, v1::Probe* out) {
   out->set_radius(p.radius);
   out->set_stiffness(p.stiffness);
   out->set_contact(p.contact == ContactModel::kSurface ? v1::SURFACE : v1::NODES);
-  out->set_shape(p.shape == ToolShape::kPunch ? v1::PUNCH : v1::SPHERE);
+  out->set_shape(p.shape == ToolShape::kPunch   ? v1::PUNCH
+                 : p.shape == ToolShape::kPlane ? v1::PLANE
+                                                : v1::SPHERE);
   if (p.axis != ProbeSpec{}.axis) set(p.axis, out->mutable_axis());
   out->set_coupling(p.coupling);
   out->set_friction(p.friction);

@@ -285,6 +285,30 @@ TEST(SceneTest, MultiRateServingIsReadAndChecked) {
   EXPECT_NE(e.find("friction is not served multi-rate"), std::string::npos) << e;
 }
 
+// A PLANE tool reads back as one; it needs the surface contact, and is refused with an active
+// region or multi-rate serving (whose regions are balls about the tool), with the reason.
+TEST(SceneTest, PlaneToolNeedsSurfaceContactAndEveryNode) {
+  auto ok = parse_scene(
+      std::string(kGood) + "probe { radius: 0.01 contact: SURFACE shape: PLANE axis { z: -1 } }\n",
+      "s.pbtxt", kConfigs);
+  ASSERT_TRUE(ok) << ok.error();
+  EXPECT_EQ(ok.value().spec.probes[0].shape, ToolShape::kPlane);
+  const std::pair<const char*, const char*> bad[] = {
+      {"probe { radius: 0.01 shape: PLANE }\n",
+       "s.pbtxt:7:1: probe 0: shape PLANE needs contact: SURFACE"},
+      {"probe { radius: 0.01 contact: SURFACE shape: PLANE }\n"
+       "solver { integrator: IMPLICIT_EULER body_rate_hz: 50 }\n",
+       "a PLANE tool is not served multi-rate"},
+      {"probe { radius: 0.01 contact: SURFACE shape: PLANE }\n"
+       "solver { active_region { tolerance: 1e-5 } }\n",
+       "a PLANE tool needs every node integrated"},
+  };
+  for (const auto& [probe, why] : bad) {
+    const std::string e = ErrorOf(std::string(kGood) + probe);
+    EXPECT_NE(e.find(why), std::string::npos) << probe << ": " << e;
+  }
+}
+
 // Every field of two scenes, exactly (the writer prints numbers that read back bit for bit).
 void ExpectSameCard(const SpringCard& a, const SpringCard& b, const std::string& where) {
   EXPECT_EQ(a.law, b.law) << where;
@@ -467,6 +491,7 @@ fixed { box { min { x: -1 y: -1 z: 0.29 } max { x: 1 y: 1 z: 0.301 } } axes: [X,
 fixed { nodes { nodes: [0, 3, 5] } }
 probe { radius: 0.004 stiffness: 1e6 contact: SURFACE shape: PUNCH axis { x: 1 } coupling: 800 friction: 0.3 }
 probe { radius: 0.002 stiffness: 500 }
+probe { radius: 0.01 contact: SURFACE shape: PLANE axis { y: -1 } }
 plate { normal { z: -1 } offset: -0.4 stiffness: 2e4 }
 solver {
   integrator: EXPLICIT_EULER rate_hz: 2000 substeps: 3 newton_iterations: 4 cg_iterations: 25
