@@ -513,6 +513,14 @@ std::string build_model(const BodySpec& spec, Model* out) {
       return which + "friction is not served multi-rate (solver body_rate_hz): set friction 0";
     if (p.shape != ToolShape::kSphere && p.contact == ContactModel::kNodes)
       return which + "a punch or plane needs contact: SURFACE";
+    if (p.bonded && p.contact == ContactModel::kNodes)
+      return which + "bonded needs contact: SURFACE";
+    if (p.bonded && p.friction > 0)
+      return which + "bonded and friction exclude each other (a bonded tool does not slip)";
+    if (p.bonded && m.options.body_rate_hz > 0)
+      return which + "a bonded tool is not served multi-rate (solver body_rate_hz)";
+    if (p.bonded && m.options.active_region)
+      return which + "a bonded tool needs every node integrated (no solver.active_region)";
     // A plane touches the body wherever it meets it: the region of the active region and of the
     // multi-rate tick is a ball about the tool.
     if (p.shape == ToolShape::kPlane && m.options.body_rate_hz > 0)
@@ -572,7 +580,15 @@ State make_state(const Model& model) {
   s.v.assign(model.rest.size(), Vec3::Zero());
   s.maxwell.assign(model.rest_length.size(), 0.0);
   s.probes.resize(model.probes.size());
-  for (size_t k = 0; k < model.probes.size(); ++k) s.probes[k].radius = model.probes[k].radius;
+  for (size_t k = 0; k < model.probes.size(); ++k) {
+    s.probes[k].radius = model.probes[k].radius;
+    if (model.probes[k].bonded) {
+      s.probes[k].bond.assign(model.rest.size(), Vec3::Constant(std::nan("")));
+      s.probes[k].bond_area.assign(model.rest.size(), 0.0);
+      s.probes[k].covered.assign(model.rest.size(), 0.0);
+      s.probes[k].bonded.reserve(model.surface_nodes.size());
+    }
+  }
   s.planes.resize(model.planes.size());
   for (size_t k = 0; k < model.planes.size(); ++k) {
     s.planes[k].offset = model.planes[k].offset;

@@ -77,6 +77,8 @@ struct Accumulator {
   Vec3* f[3];  // node forces (null: not wanted)
   Mat3* b[3];  // node blocks (null: not wanted)
   unsigned terms = kToolAll;
+  double* ar[3] = {nullptr, nullptr, nullptr};  // node area shares (null: not wanted)
+  double al[3] = {0, 0, 0};
   bool touched = false;
   double energy = 0, s0 = 0, depth = 0;
   Vec3 force = Vec3::Zero();
@@ -100,6 +102,8 @@ struct Accumulator {
     force -= (w * p) * u;
     depth = std::max(depth, pen.g);
     touched = true;
+    if (ar[0])
+      for (int a = 0; a < 3; ++a) al[a] += w * l[a];
     const bool stiffness = terms & kToolStiffness;
     if (!stiffness && !b[0]) {
       if (f[0])
@@ -137,6 +141,7 @@ struct Accumulator {
     for (int a = 0; a < 3; ++a) {
       if (f[a]) *f[a] += fl[a];
       if (b[a]) *b[a] += symmetric(bl[a]);
+      if (ar[a]) *ar[a] += al[a];
     }
   }
 };
@@ -515,7 +520,7 @@ double contact_modulus(const Model& m) {
 
 void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::vector<Vec3>& x,
                   const int* tris, int n, ToolContact* out, Vec3* node_force, Mat3* node_block,
-                  unsigned terms) {
+                  unsigned terms, double* node_area) {
   *out = ToolContact{};
   const ContactLayer layer = contact_layer(m, k, R);
   const int count = tris ? n : static_cast<int>(m.surface.size());
@@ -527,9 +532,11 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
     const Vec3 &p0 = x[tri[0]], &p1 = x[tri[1]], &p2 = x[tri[2]];
     Vec3* f[3] = {nullptr, nullptr, nullptr};
     Mat3* b[3] = {nullptr, nullptr, nullptr};
+    double* ar[3] = {nullptr, nullptr, nullptr};
     for (int a = 0; a < 3; ++a) {
       if (node_force) f[a] = &node_force[tri[a]];
       if (node_block) b[a] = &node_block[tri[a]];
+      if (node_area) ar[a] = &node_area[tri[a]];
     }
     bool touched;
     if (spec.shape == ToolShape::kSphere) {
@@ -538,7 +545,8 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
       const double rad = triangle_bound(p0, p1, p2, &cen);
       if ((cen - pose).squaredNorm() >= (R + rad) * (R + rad)) continue;
       const SphereTool tool{pose, R};
-      Accumulator<SphereTool> acc{layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}, terms};
+      Accumulator<SphereTool> acc{
+          layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}, terms, {ar[0], ar[1], ar[2]}};
       sphere_triangle(p0, p1, p2, acc);
       touched = acc.touched;
     } else {
@@ -546,7 +554,8 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
       if ((p0 - pose).dot(axis) >= 0 && (p1 - pose).dot(axis) >= 0 && (p2 - pose).dot(axis) >= 0)
         continue;
       const PunchTool tool{pose, axis};
-      Accumulator<PunchTool> acc{layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}, terms};
+      Accumulator<PunchTool> acc{
+          layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}, terms, {ar[0], ar[1], ar[2]}};
       if (spec.shape == ToolShape::kPlane)
         plane_triangle(p0, p1, p2, acc);
       else
@@ -668,6 +677,11 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     p->stick = -1;
     p->friction_force.setZero();
     p->friction_limit = 0;
+    for (int i : p->bonded) {  // lifted off: released
+      p->bond[i] = Vec3::Constant(std::nan(""));
+      p->bond_area[i] = 0;
+    }
+    p->bonded.clear();
     return;
   }
   const double R = probe_radius(m, k, *p);
@@ -755,15 +769,31 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   const double kt = kvc;
   Mat3 P = Mat3::Zero();  // zero: no friction term
   Vec3 xs = Vec3::Zero();
-  auto friction_energy = [&](const Vec3& y) { return 0.5 * kt * (P * (y - xs)).squaredNorm(); };
+  // Bonded nodes (nodes held): springs k_i from proxy + bond[i] to x_i, energy
+  // sum k_i / 2 |x_i - bond[i] - y|^2 = kb / 2 |y - z|^2 + e_b, z the k-weighted mean of
+  // x_i - bond[i], e_b the energy at y = z.
+  const double k_layer = contact_layer(m, k, R).k;
+  double kb = 0, eb = 0;
+  Vec3 z = Vec3::Zero();
+  for (int i : p->bonded) {
+    const double ki = k_layer * p->bond_area[i];
+    kb += ki;
+    z += ki * (x[i] - p->bond[i]);
+  }
+  if (kb > 0) z /= kb;
+  for (int i : p->bonded)
+    eb += 0.5 * k_layer * p->bond_area[i] * (x[i] - p->bond[i] - z).squaredNorm();
+  auto extra_energy = [&](const Vec3& y) {
+    return 0.5 * kt * (P * (y - xs)).squaredNorm() + 0.5 * kb * (y - z).squaredNorm() + eb;
+  };
   // Newton on Phi from `at` (c: the layer at `at`).
   auto newton = [&](Vec3& at, ToolContact& c) {
-    double phi = 0.5 * kvc * (at - target).squaredNorm() + c.energy + friction_energy(at);
+    double phi = 0.5 * kvc * (at - target).squaredNorm() + c.energy + extra_energy(at);
     for (int it = 0; it < 16; ++it) {
-      const Vec3 grad = kvc * (at - target) - c.force + kt * (P * (at - xs));
+      const Vec3 grad = kvc * (at - target) - c.force + kt * (P * (at - xs)) + kb * (at - z);
       if (grad.norm() <= 1e-14 * (kvc * R)) break;
       // Newton on the exact Hessian where it is positive definite, else on its positive part.
-      const Mat3 Hf = kt * P;
+      const Mat3 Hf = kt * P + kb * Mat3::Identity();
       const Eigen::LDLT<Mat3> exact(kvc * Mat3::Identity() - c.stiffness + Hf);
       Vec3 dx = exact.isPositive() && exact.info() == Eigen::Success
                     ? Vec3(-exact.solve(grad))
@@ -788,7 +818,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
       for (int ls = 0; ls < 20; ++ls) {
         next = at + alpha * dx;
         tool_contact(m, k, R, next, x, cand, nc, &trial);
-        phi_next = 0.5 * kvc * (next - target).squaredNorm() + trial.energy + friction_energy(next);
+        phi_next = 0.5 * kvc * (next - target).squaredNorm() + trial.energy + extra_energy(next);
         const bool shallow = trial.depth < g_limit || trial.depth <= c.depth;
         if (shallow && phi_next <= phi + 1e-4 * alpha * grad.dot(dx)) {
           accepted = true;
@@ -852,11 +882,31 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   p->contacts = c.faces;
   p->force = kvc * (at - target);
   // dF/dt = k_vc (k_vc I - K')^-1 K': the coupling in series with the layer (and, sticking, the
-  // friction spring: K' = K - k_t P), nodes held.
-  if (c.faces > 0) {
-    p->stiffness = coupled_stiffness(kvc, c.stiffness - (sticking ? Mat3(kt * P) : Mat3::Zero()));
+  // friction spring: K' = K - k_t P; the bonds: K' -= kb I), nodes held.
+  if (c.faces > 0 || kb > 0) {
+    p->stiffness = coupled_stiffness(
+        kvc, c.stiffness - (sticking ? Mat3(kt * P) : Mat3::Zero()) - kb * Mat3::Identity());
   }
   anchor_proxy(m, x, cand, nc, reach, p);
+  // A bonded tool glues the surface it now covers: each node with a share of it is bonded where
+  // it is relative to the proxy (the first time), and its bonded area grows to that share.
+  if (m.probes[k].bonded && c.faces > 0) {
+    ToolContact cover;
+    tool_contact(m, k, R, at, x, cand, nc, &cover, nullptr, nullptr, kToolForceOnly,
+                 p->covered.data());
+    for (int q = 0; q < nc; ++q)
+      for (int i : m.surface[cand ? cand[q] : q]) {
+        double& share = p->covered[i];
+        if (share > 0) {
+          if (std::isnan(p->bond[i].x())) {
+            p->bond[i] = x[i] - at;
+            p->bonded.push_back(i);
+          }
+          p->bond_area[i] = std::max(p->bond_area[i], share);
+        }
+        share = 0;
+      }
+  }
 }
 
 void hold_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCandidates* candidates,

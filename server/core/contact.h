@@ -1,7 +1,8 @@
 // Contact of rigid tools with the deformed surface of a body, through a proxy.
 //
-// The contact layer. A tool shape (a sphere of radius R around its centre, or a flat-ended
-// cylinder: a punch of radius R whose end face is centred at its pose and pushes along its axis)
+// The contact layer. A tool shape (a sphere of radius R around its centre, a flat-ended
+// cylinder: a punch of radius R whose end face is centred at its pose and pushes along its axis,
+// or a plane: an unbounded face through its pose pushing along its axis, R its length scale)
 // overlaps the body's surface triangles at their current positions. A surface point y inside the
 // tool at penetration g(y) (sphere: g = R - |y - c|; punch: g = -(y - c).a within radius R of the
 // axis) carries the pressure p(g) of a contact layer, pushing it out of the tool (sphere: along
@@ -39,6 +40,12 @@
 // coupling force F = k_vc (x - t) and its stiffness dF/dt = k_vc (k_vc I - K)^-1 K, with K =
 // dF_contact/dx the layer's stiffness at the proxy (nodes held): a spring in series with the
 // layer, never stiffer than k_vc. The body receives the layer's forces at the proxy.
+//
+// Bonded tools (ProbeSpec::bonded). Every surface node with a share of the surface the tool covers
+// is glued to it where it is relative to the proxy the first time, by a spring k A_i (k the
+// layer's, A_i the node's share int l_i dA of the covered surface, the largest so far: the
+// distribution the layer pushes with), until the probe is deactivated. The proxy's Phi takes the
+// bonds' energy with the nodes held, and K the bonds' -sum k A_i I.
 //
 // The default coupling is kCouplingFactor E* R: stiff against the tissue under the tool (whose
 // Hertz stiffness is 2 E* sqrt(R d)), so the proxy lags the device by about 1 % of the force at
@@ -176,10 +183,12 @@ double contact_modulus(const Model& model);
 // semi-definite bound on the layer's stiffness at that node, what implicit and semi-implicit
 // updates use) to node_block[i]. `terms` (ToolTerms) leaves out what the caller does not read
 // (left zero in `out`): the contact stage asks for the node terms only.
+// When node_area is given, adds to node_area[i] each node's share int l_i dA of the surface
+// inside the tool (m^2).
 void tool_contact(const Model& model, int probe, double radius, const Vec3& pose,
                   const std::vector<Vec3>& x, const int* tris, int n, ToolContact* out,
-                  Vec3* node_force = nullptr, Mat3* node_block = nullptr,
-                  unsigned terms = kToolAll);
+                  Vec3* node_force = nullptr, Mat3* node_block = nullptr, unsigned terms = kToolAll,
+                  double* node_area = nullptr);
 
 // The proxy stage for probe k: moves the proxy of *probe (from its last pose, carried by the
 // surface, toward probe->center) and fills probe->force, stiffness, depth, contacts, proxy and

@@ -91,10 +91,20 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
     const ProbeState& p = s.probes[q];
     if (!p.active || !p.proxy_placed) continue;
     const std::vector<int>& cand = ws.contact.candidates[q].triangles;
+    const double R = probe_radius(m, static_cast<int>(q), p);
+    // Bonded nodes: held at proxy + bond[i] by their springs, taken implicitly like the layer.
+    const double k_layer = p.bonded.empty() ? 0.0 : contact_layer(m, static_cast<int>(q), R).k;
+    for (int i : p.bonded) {
+      const double ki = k_layer * p.bond_area[i];
+      ws.force[i] += ki * (p.proxy + p.bond[i] - s.x[i]);
+      ws.contact.block[i] += ki * Mat3::Identity();
+      list_contact_node(ws, i);
+      ws.contact.v_ref[i] = p.proxy_velocity;
+    }
     ToolContact c;
-    tool_contact(m, static_cast<int>(q), probe_radius(m, static_cast<int>(q), p), p.proxy, s.x,
-                 cand.data(), static_cast<int>(cand.size()), &c, ws.force.data(),
-                 ws.contact.block.data(), kToolForceOnly);
+    tool_contact(m, static_cast<int>(q), R, p.proxy, s.x, cand.data(),
+                 static_cast<int>(cand.size()), &c, ws.force.data(), ws.contact.block.data(),
+                 kToolForceOnly);
     if (c.faces == 0) continue;
     friction_forces(m, static_cast<int>(q), p, s.x, ws.force.data(), ws.contact.block.data());
     // The layer's reference velocity (two probes on one node: the last one's, approximate).

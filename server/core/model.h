@@ -130,6 +130,9 @@ struct ProbeSpec {
   double coupling = 0;      // kSurface: N/m, virtual coupling device-proxy; 0: kCouplingFactor
                             // E* R
   double friction = 0;      // kSurface: Coulomb coefficient mu (>= 0), stick and slip
+  bool bonded = false;      // kSurface: every surface node the tool reaches is glued to it from
+                            // then on (moves with it on all axes, no slip) until it is lifted
+                            // off (inactive); not with friction
   bool hold_proxy = false;  // kSurface: the step keeps the proxy where it is (hold_proxy): the
                             // multi-rate body, whose proxy the 1 kHz tick solves (not in scenes)
 };
@@ -243,6 +246,17 @@ struct ProbeState {
   Vec3 contact_normal = Vec3::Zero();  // unit, the layer's force on the tool (friction only)
   double friction_limit = 0;           // N, mu times the normal force
   bool sliding = false;                // the last update slipped
+  // Bonded tools (ProbeSpec::bonded): the nodes glued to the tool, in the order they were, each
+  // one's place relative to the proxy (m; NaN where not bonded) and its bonded area A_i (m^2: the
+  // largest share int l_i dA of the surface the tool has covered, l_i its barycentric weight, the
+  // share by which the layer spreads a pressure to it). Node i is held at proxy + bond[i] by a
+  // spring k_layer A_i, so a bonded tool pulls on the nodes as its layer pushes on them. The
+  // arrays have num_nodes entries for a bonded probe and are empty otherwise; `covered` is
+  // scratch for the proxy stage (zero between updates).
+  std::vector<int> bonded;  // capacity: every surface node (make_state)
+  std::vector<Vec3> bond;
+  std::vector<double> bond_area;
+  std::vector<double> covered;
 };
 
 struct PlaneState {

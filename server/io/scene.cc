@@ -343,6 +343,7 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     spec.stiffness = p.stiffness();
     spec.coupling = p.coupling();
     spec.friction = p.friction();
+    spec.bonded = p.bonded();
     switch (p.contact()) {
       case v1::NODES:
         spec.contact = ContactModel::kNodes;
@@ -478,6 +479,9 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
     for (int k = 0; k < scene.fixed_size(); ++k)
       if (e.rfind("fixed selector " + std::to_string(k), 0) == 0)
         return Error{loc.at("fixed", k) + e};
+    for (int k = 0; k < scene.probe_size(); ++k)
+      if (e.rfind("probe " + std::to_string(k) + ": ", 0) == 0)
+        return Error{loc.at("probe", k) + e};
     for (int k = 0; k < scene.plate_size(); ++k)
       if (e.rfind("plane " + std::to_string(k) + " ", 0) == 0 ||
           e.rfind("plane " + std::to_string(k) + ":", 0) == 0)

@@ -96,6 +96,7 @@ void set_probe(const ProbeSpec& p, v1::Probe* out) {
   if (p.axis != ProbeSpec{}.axis) set(p.axis, out->mutable_axis());
   out->set_coupling(p.coupling);
   out->set_friction(p.friction);
+  out->set_bonded(p.bonded);
 }
 
 void set_solver(const SolverOptions& o, v1::Solver* out) {

@@ -76,6 +76,50 @@ TEST(AllocationTest, StepAllocatesNothing) {
     }
 }
 
+// Surface tools: a bonded punch pressed and lifted, a plane pressed, every integrator: the proxy
+// stage, the bonds (growing while the tool presses) and the layer allocate nothing.
+TEST(AllocationTest, SurfaceToolStepAllocatesNothing) {
+  for (Integrator integ :
+       {Integrator::kSymplecticEuler, Integrator::kExplicitEuler, Integrator::kImplicitEuler})
+    for (ToolShape shape : {ToolShape::kPunch, ToolShape::kPlane}) {
+      BodySpec b;
+      b.mesh = make_box_lattice(Vec3(0.04, 0.04, 0.02), {4, 4, 2});
+      SpringCard conical;
+      conical.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};
+      conical.stiffness_cap = 20;
+      b.groups.push_back({"all", conical, kAllFamilies, {}, Vec3::Zero(), 10});
+      FixedSelector base;
+      base.kind = FixedSelector::Kind::kPlane;
+      b.fixed.push_back(base);
+      b.options.integrator = integ;
+      b.options.mass_damping = 5;
+      ProbeSpec p;
+      p.radius = 0.012;
+      p.contact = ContactModel::kSurface;
+      p.shape = shape;
+      p.bonded = shape == ToolShape::kPunch;
+      b.probes.push_back(p);
+      Model m;
+      ASSERT_EQ(build_model(b, &m), "");
+      State s = make_state(m);
+      Workspace ws(m);
+      set_probe(s, 0, Vec3(0.02, 0.02, 0.0201));
+      for (int i = 0; i < 5; ++i) step(m, s, ws);  // warm up: placed, first touch
+      int contact_steps = 0;
+      const long allocations = AllocationsDuring([&] {
+        for (int i = 0; i < 200; ++i) {
+          const double d = 2e-6 * (i < 100 ? i : 200 - 2 * (i - 100));  // press, then lift
+          set_probe(s, 0, Vec3(0.02, 0.02, 0.0201 - d));
+          step(m, s, ws);
+          contact_steps += s.probes[0].contacts > 0;
+        }
+      });
+      EXPECT_EQ(allocations, 0) << integrator_name(integ) << " shape " << static_cast<int>(shape);
+      EXPECT_GT(contact_steps, 0) << integrator_name(integ);
+      if (p.bonded) EXPECT_GT(s.probes[0].bonded.size(), 1u) << integrator_name(integ);
+    }
+}
+
 TEST(AllocationTest, ActiveRegionStepAllocatesNothing) {
   // Multi-rate far field: far steps, region rebuilds as the probe moves and presses, frozen too.
   // The region itself (the whole-body switch off; on, a region this large on so small a bar is

@@ -286,8 +286,9 @@ TEST(SceneTest, MultiRateServingIsReadAndChecked) {
 }
 
 // A PLANE tool reads back as one; it needs the surface contact, and is refused with an active
-// region or multi-rate serving (whose regions are balls about the tool), with the reason.
-TEST(SceneTest, PlaneToolNeedsSurfaceContactAndEveryNode) {
+// region or multi-rate serving (whose regions are balls about the tool), with the reason; so is
+// a bonded tool, and bonded with friction.
+TEST(SceneTest, PlaneAndBondedToolsNeedSurfaceContactAndEveryNode) {
   auto ok = parse_scene(
       std::string(kGood) + "probe { radius: 0.01 contact: SURFACE shape: PLANE axis { z: -1 } }\n",
       "s.pbtxt", kConfigs);
@@ -298,10 +299,20 @@ TEST(SceneTest, PlaneToolNeedsSurfaceContactAndEveryNode) {
        "s.pbtxt:7:1: probe 0: shape PLANE needs contact: SURFACE"},
       {"probe { radius: 0.01 contact: SURFACE shape: PLANE }\n"
        "solver { integrator: IMPLICIT_EULER body_rate_hz: 50 }\n",
-       "a PLANE tool is not served multi-rate"},
+       "s.pbtxt:7:1: probe 0: a PLANE tool is not served multi-rate"},
       {"probe { radius: 0.01 contact: SURFACE shape: PLANE }\n"
        "solver { active_region { tolerance: 1e-5 } }\n",
        "a PLANE tool needs every node integrated"},
+      {"probe { radius: 0.01 bonded: true }\n",
+       "s.pbtxt:7:1: probe 0: bonded needs contact: SURFACE"},
+      {"probe { radius: 0.01 contact: SURFACE bonded: true friction: 0.5 }\n",
+       "s.pbtxt:7:1: probe 0: bonded and friction exclude each other"},
+      {"probe { radius: 0.01 contact: SURFACE bonded: true }\n"
+       "solver { integrator: IMPLICIT_EULER body_rate_hz: 50 }\n",
+       "s.pbtxt:7:1: probe 0: a bonded tool is not served multi-rate"},
+      {"probe { radius: 0.01 contact: SURFACE bonded: true }\n"
+       "solver { active_region { tolerance: 1e-5 } }\n",
+       "s.pbtxt:7:1: probe 0: a bonded tool needs every node integrated"},
   };
   for (const auto& [probe, why] : bad) {
     const std::string e = ErrorOf(std::string(kGood) + probe);
@@ -401,6 +412,7 @@ void ExpectSameScene(const SceneFile& a, const SceneFile& b, const std::string& 
     EXPECT_EQ(p.axis, q.axis) << where << " probe " << k;
     EXPECT_EQ(p.coupling, q.coupling) << where << " probe " << k;
     EXPECT_EQ(p.friction, q.friction) << where << " probe " << k;
+    EXPECT_EQ(p.bonded, q.bonded) << where << " probe " << k;
   }
   ASSERT_EQ(s.planes.size(), t.planes.size()) << where;
   for (size_t k = 0; k < s.planes.size(); ++k) {
@@ -491,7 +503,7 @@ fixed { box { min { x: -1 y: -1 z: 0.29 } max { x: 1 y: 1 z: 0.301 } } axes: [X,
 fixed { nodes { nodes: [0, 3, 5] } }
 probe { radius: 0.004 stiffness: 1e6 contact: SURFACE shape: PUNCH axis { x: 1 } coupling: 800 friction: 0.3 }
 probe { radius: 0.002 stiffness: 500 }
-probe { radius: 0.01 contact: SURFACE shape: PLANE axis { y: -1 } }
+probe { radius: 0.01 contact: SURFACE shape: PLANE axis { y: -1 } bonded: true }
 plate { normal { z: -1 } offset: -0.4 stiffness: 2e4 }
 solver {
   integrator: EXPLICIT_EULER rate_hz: 2000 substeps: 3 newton_iterations: 4 cg_iterations: 25
