@@ -5,7 +5,9 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 
+#include "core/multirate.h"
 #include "core/step.h"
 #include "lab/quasi_static.h"
 
@@ -127,8 +129,9 @@ void fill_stats(const Model& m, const std::vector<Vec3>& x, const Counters& coun
 }  // namespace
 
 Curve compression_curve(const Model& model, double rate, double to_strain, int samples,
-                        CompressionStats* stats) {
-  Model m = model;
+                        CompressionStats* stats, bool served) {
+  const bool multirate = served && model.options.body_rate_hz > 0;
+  Model m = multirate ? body_model(model) : model;
   PlaneSpec& plate = m.planes.at(0);
   const Vec3 n = plate.normal;
   const auto [lo, hi] = extent(m, n);
@@ -140,26 +143,42 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
   State s = make_state(m);
   s.planes[0].offset = lo;  // touching the body's top
   Workspace ws(m);
+  std::unique_ptr<LocalModelBuilder> builder;
+  int since_factor = 0;
+  if (multirate) {
+    builder = std::make_unique<LocalModelBuilder>(m);
+    prime_workspace(ws);
+  }
   const double dt = m.options.dt;
   const long steps = std::max(1L, static_cast<long>(std::ceil(travel / (rate * dt) - 1e-9)));
   std::vector<double> u(steps + 1, 0.0), f(steps + 1, 0.0);
-  double max_pen = 0, step_time = 0;
+  double max_pen = 0, step_time = 0, failed = -1;
   for (long k = 1; k <= steps; ++k) {
     s.planes[0].offset = lo + std::min(travel, rate * dt * static_cast<double>(k));
     const auto t0 = std::chrono::steady_clock::now();
-    step(m, s, ws);
+    if (multirate)
+      step_body(m, model.options, s, ws, *builder, &since_factor);
+    else
+      step(m, s, ws);
     step_time += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     compute_forces(m, s, ws);  // the reaction at the end-of-step positions
     u[k] = s.planes[0].offset - lo;
     f[k] = -n.dot(s.planes[0].force);
-    for (const Vec3& x : s.x) max_pen = std::max(max_pen, s.planes[0].offset - n.dot(x));
+    double pen = 0;
+    for (const Vec3& x : s.x) pen = std::max(pen, s.planes[0].offset - n.dot(x));
+    max_pen = std::max(max_pen, pen);
+    if (failed < 0 && (s.counters.rollbacks > 0 || pen > kBlowUpPenetration * (hi - lo)))
+      failed = u[k];
   }
   Curve out(samples + 1);
   for (int i = 0; i <= samples; ++i) {
     out[i].displacement = travel * i / samples;
     out[i].force = interpolate(u, f, out[i].displacement);
   }
-  if (stats) fill_stats(m, s.x, s.counters, plate.stiffness, dt, max_pen, steps, step_time, stats);
+  if (stats) {
+    fill_stats(m, s.x, s.counters, plate.stiffness, dt, max_pen, steps, step_time, stats);
+    stats->failed_at = failed;
+  }
   return out;
 }
 

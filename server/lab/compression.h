@@ -50,6 +50,11 @@ struct CompressionStats {
   double plate_stiffness = 0;   // N/m per node, as used
   double max_penetration = 0;   // m, deepest node behind the moving plate at a sample
   std::uint64_t rollbacks = 0;  // guard trips (should be 0)
+  // m, plate travel where the run failed (compression_curve; -1: it did not): the first guard
+  // trip (the body held at a last good state while the plate moved on) or the first step with a
+  // node behind the rigid plate by more than kBlowUpPenetration of the body's height (a blow-up
+  // the guard let through). The curve past it is no result.
+  double failed_at = -1;
   std::uint64_t hard_stops = 0;
   double step_seconds = 0;      // s, mean wall time of step() alone
   std::vector<Vec3> positions;  // m, node positions at the end of the travel
@@ -64,6 +69,10 @@ struct CompressionStats {
 // that leans, buckles or whose layers alternately bulge and narrow does not.
 double layer_spread(const Model& model, const std::vector<Vec3>& x);
 
+// A node this far behind a rigid compression plate, as a fraction of the body's height, means the
+// run blew up (the plate's penetration in a sound run is a few micrometres).
+inline constexpr double kBlowUpPenetration = 0.01;
+
 // Moves plane 0 of `model` from the body's top (first contact) into the body at `rate` (m/s)
 // until the plate has travelled to_strain * plate_height, stepping with the model's integrator
 // at its own time step. Returns samples + 1 points at equal plate travel (the first at 0),
@@ -72,9 +81,13 @@ double layer_spread(const Model& model, const std::vector<Vec3>& x);
 // default is sized for explicit stability, far too soft to act as a rigid plate), for explicit
 // integrators no further than omega h = 1 on the lightest node: the plate then penetrates the
 // body by a fraction of its travel, reported in stats (small with the implicit solver).
+// served: a multi-rate model (solver body_rate_hz > 0) is stepped as the server's body thread
+// steps it (core/multirate.h): body_model's step of 1 / body_rate_hz, its Newton cap and
+// tolerance, and its factor renewed by step_body's rule; the compression through exactly the
+// served configuration.
 // Precondition: the model has a plane; rate > 0; 0 < to_strain < 1; samples >= 1.
 Curve compression_curve(const Model& model, double rate, double to_strain, int samples,
-                        CompressionStats* stats = nullptr);
+                        CompressionStats* stats = nullptr, bool served = false);
 
 // The same test quasi-statically, through the lab's quasi-static solver (lab/quasi_static.h):
 // the frictionless plate is set at each of `samples` equal steps of travel up to to_strain *

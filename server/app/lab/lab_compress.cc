@@ -7,6 +7,11 @@
 //   --quasi-static: the plate moved in increments, the body at equilibrium after each one
 //   (lab/quasi_static.h), instead of at a rate with the scene's integrator.
 //   --friction MU: the moving plate with Coulomb friction MU (the base as the scene holds it).
+//   --served: a multi-rate scene (solver body_rate_hz) stepped as the server's body thread steps
+//   it (its step, Newton cap and factor schedule: lab/compression.h).
+//   --data FILE...: the mean of these measured curves on the output grid and the mean relative
+//   error of the run against it from --skip-strain on (the calibration's metric).
+//   A run the guard rolled back fails (exit 3), its curve cut before the first rollback.
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -14,7 +19,9 @@
 
 #include "app/lab/lab.h"
 #include "core/step.h"
+#include "io/curve_reader.h"
 #include "io/scene.h"
+#include "lab/calibration.h"
 #include "lab/compression.h"
 #include "lab/quasi_static.h"
 
@@ -31,6 +38,9 @@ void register_compress(CLI::App& app, Runner* run) {
     double tolerance = 1e-4;
     bool static_solve = false;
     double static_tolerance = 1e-5;
+    bool served = false;
+    std::vector<std::string> data;
+    double skip_strain = 0.03;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -60,6 +70,14 @@ void register_compress(CLI::App& app, Runner* run) {
                 "instead of moving the plate at --rate-mm-per-min");
   cmd->add_option("--static-tolerance", o->static_tolerance,
                   "--static: relative change of the plate force that ends a solve")
+      ->capture_default_str();
+  cmd->add_flag("--served", o->served,
+                "a multi-rate scene (solver body_rate_hz) steps as the server's body thread "
+                "steps it: its own step, Newton cap and factor schedule");
+  cmd->add_option("--data", o->data,
+                  "measured curves (displacement_mm,force_N): print the run's mean relative "
+                  "error against their mean");
+  cmd->add_option("--skip-strain", o->skip_strain, "--data: the error is taken from this strain on")
       ->capture_default_str();
   cmd->callback([o, run] {
     *run = [o]() -> int {
@@ -94,6 +112,24 @@ void register_compress(CLI::App& app, Runner* run) {
         std::fprintf(stderr, "conica-lab compress: %s: %s\n", o->scene.c_str(), e.c_str());
         return 2;
       }
+      // The measured curves, read before the run (units and reach against the body's height).
+      std::vector<Curve> measured;
+      io::CurveRequest request;
+      request.height = plate_height(m);
+      request.max_strain = o->to_strain;
+      for (const std::string& path : o->data) {
+        auto r = io::read_curve(path, request);
+        if (!r) {
+          std::fprintf(stderr, "conica-lab compress: %s\n", r.error().c_str());
+          return 2;
+        }
+        for (const std::string& w : r.value().warnings)
+          std::fprintf(stderr, "conica-lab compress: warning: %s\n", w.c_str());
+        Curve curve;
+        for (const io::CurveSample& p : r.value().samples)
+          curve.push_back({p.displacement, p.force});
+        measured.push_back(std::move(curve));
+      }
       if (!o->bonded && m.planes[0].friction > 0)
         std::fprintf(stderr,
                      "conica-lab compress: frictional plates: the moving plate with Coulomb "
@@ -127,7 +163,25 @@ void register_compress(CLI::App& app, Runner* run) {
       } else if (o->static_solve) {
         c = static_compression_curve(m, o->to_strain, o->samples, &st, o->static_tolerance);
       } else {
-        c = compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples, &st);
+        if (o->served && !(m.options.body_rate_hz > 0))
+          std::fprintf(stderr,
+                       "conica-lab compress: --served: the scene is not multi-rate (no "
+                       "body_rate_hz): stepped at its own time step\n");
+        c = compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples, &st,
+                              o->served);
+      }
+      // A run that blew up (a guard trip, or a node through the rigid plate) is no result past
+      // that point. The curve stops at the last sample before it, and the run fails.
+      const bool blew_up = st.failed_at >= 0;
+      if (blew_up) {
+        const double h = plate_height(m);
+        std::fprintf(stderr,
+                     "conica-lab compress: %s: numerical blow-up at %.4g mm of plate travel "
+                     "(strain %.3g; %llu guard rollbacks, a node up to %.3g mm behind the plate); "
+                     "the curve stops at the last sample before it\n",
+                     o->scene.c_str(), st.failed_at * 1e3, st.failed_at / h,
+                     static_cast<unsigned long long>(st.rollbacks), st.max_penetration * 1e3);
+        while (c.size() > 1 && c.back().displacement >= st.failed_at) c.pop_back();
       }
       std::string csv = "displacement_mm,force_N\n";
       char line[96];
@@ -154,6 +208,28 @@ void register_compress(CLI::App& app, Runner* run) {
                    static_cast<unsigned long long>(st.rollbacks), c.back().displacement * 1e3,
                    c.back().force, st.step_seconds * 1e6,
                    st.half_width > 0 ? 100 * st.layer_spread / st.half_width : 0.0);
+      if (!measured.empty()) {
+        std::vector<double> grid, model, mean;
+        for (const CurvePoint& p : c) {
+          grid.push_back(p.displacement);
+          model.push_back(p.force);
+        }
+        std::string why;
+        if (!mean_curve(measured, grid, &mean, &why)) {
+          std::fprintf(stderr, "conica-lab compress: --data: %s\n", why.c_str());
+          return 2;
+        }
+        int first = 0;
+        const double h = plate_height(m);
+        while (first + 1 < static_cast<int>(grid.size()) &&
+               grid[first] < o->skip_strain * h - 1e-12)
+          ++first;
+        std::fprintf(stderr,
+                     "conica-lab compress: mean relative error %.3f %% against the mean of %zu "
+                     "measured curve(s), strain %.3g to %.3g (%zu points)\n",
+                     100 * average_relative_error(model, mean, first), measured.size(),
+                     grid[first] / h, grid.back() / h, grid.size() - first);
+      }
       if (!o->plot.empty()) {
         std::string data = o->out;
         if (data == "-") {
@@ -166,13 +242,13 @@ void register_compress(CLI::App& app, Runner* run) {
           std::fputs(csv.c_str(), f);
           std::fclose(f);
         }
-        return run_plot_script("plot_curves", "--out '" + o->plot + "' --title 'Compression of " +
-                                                  o->scene +
-                                                  "' --xlabel 'plate travel (mm)' "
-                                                  "--ylabel 'force (N)' '" +
-                                                  data + "'");
+        const int plotted = run_plot_script(
+            "plot_curves", "--out '" + o->plot + "' --title 'Compression of " + o->scene +
+                               "' --xlabel 'plate travel (mm)' --ylabel 'force (N)' '" + data +
+                               "'");
+        if (plotted != 0) return plotted;
       }
-      return 0;
+      return blew_up ? 3 : 0;
     };
   });
 }
