@@ -89,6 +89,7 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
         settled = settle_at(k == parts ? u : u_prev + (u - u_prev) * k / parts, &rel);
     }
     if (!settled) ++st.unconverged;
+    if (!settled && !(rel <= kQuasiStaticFailure) && st.failed_at < 0) st.failed_at = u;
     st.worst_residual = std::max(st.worst_residual, rel);
     out[j].displacement = u;
     out[j].force = f;

@@ -50,11 +50,18 @@ struct QuasiStaticOptions {
   double cg_tolerance = 1e-10;  // relative residual of each Newton step's conjugate gradient
 };
 
+// An increment whose settle criterion ends above this did not find an equilibrium at all (a body
+// that collapsed or blew up), rather than settling a little short of the tolerance.
+inline constexpr double kQuasiStaticFailure = 1e-2;
+
 struct QuasiStaticStats {
   long steps = 0;  // implicit steps taken in all
   int increments = 0;
-  int unconverged = 0;          // increments that did not settle, even in max_parts parts
-  double worst_residual = 0;    // largest final value of the settle criterion over the increments
+  int unconverged = 0;        // increments that did not settle, even in max_parts parts
+  double worst_residual = 0;  // largest final value of the settle criterion over the increments
+  // m, travel of the first increment left out of balance by more than kQuasiStaticFailure of the
+  // reaction (-1: none): no equilibrium there, so the curve past it is no result.
+  double failed_at = -1;
   std::uint64_t rollbacks = 0;  // guard trips
   std::uint64_t hard_stops = 0;
   double step_seconds = 0;      // s, wall time spent in step() in all

@@ -78,10 +78,32 @@ TEST(QuasiStaticTest, BondedCompressionMatchesTheLinearEquilibrium) {
   const Curve c = quasi_static_curve(m, plate_load(m), plate_reaction(), travel, o, &st);
   EXPECT_EQ(st.unconverged, 0);
   EXPECT_LT(st.worst_residual, 1e-9);
+  EXPECT_LT(st.failed_at, 0);
   const double ref = LinearReaction(m, m.planes[0].bonded_nodes, Vec3(0, 0, -travel));
   ASSERT_GT(ref, 0);
   EXPECT_NEAR(c.back().force / ref, 1, 1e-4) << c.back().force << " vs " << ref;
   EXPECT_NEAR(c[1].force / c.back().force, 0.5, 1e-4);  // linear
+}
+
+// An increment that ends far out of balance is no result: with one crude iteration per
+// increment (one Newton iteration, five CG iterations, no parts) a 20 % bonded compression does
+// not reach equilibrium, and the stats name the travel of the first such increment.
+TEST(QuasiStaticTest, AnIncrementFarOutOfBalanceIsReportedAsAFailure) {
+  BodySpec spec = Block(2, 2, 0.02, 0.02);
+  ASSERT_EQ(bond_compression_plates(&spec), "");
+  Model m;
+  ASSERT_EQ(build_model(spec, &m), "");
+  QuasiStaticOptions o;
+  o.samples = 4;
+  o.max_iterations = 1;
+  o.max_parts = 1;
+  o.newton_iterations = 1;
+  o.cg_iterations = 5;
+  QuasiStaticStats st;
+  quasi_static_curve(m, plate_load(m), plate_reaction(), 0.004, o, &st);
+  EXPECT_GT(st.unconverged, 0);
+  EXPECT_GT(st.worst_residual, kQuasiStaticFailure);
+  EXPECT_NEAR(st.failed_at, 0.001, 1e-12);  // the first increment
 }
 
 TEST(QuasiStaticTest, BondedIsStifferThanFrictionless) {

@@ -11,7 +11,7 @@
 //   it (its step, Newton cap and factor schedule: lab/compression.h).
 //   --data FILE...: the mean of these measured curves on the output grid and the mean relative
 //   error of the run against it from --skip-strain on (the calibration's metric).
-//   A run the guard rolled back fails (exit 3), its curve cut before the first rollback.
+//   A run that blew up or found no equilibrium fails (exit 3), its curve cut before it.
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -149,6 +149,7 @@ void register_compress(CLI::App& app, Runner* run) {
         st.steps = qs.steps;
         st.dt = qo.dt;
         st.rollbacks = qs.rollbacks;
+        st.failed_at = qs.failed_at;
         st.plate_stiffness = m.planes[0].stiffness;
         std::fprintf(
             stderr,
@@ -170,17 +171,20 @@ void register_compress(CLI::App& app, Runner* run) {
         c = compression_curve(m, o->rate_mm_per_min * 1e-3 / 60, o->to_strain, o->samples, &st,
                               o->served);
       }
-      // A run that blew up (a guard trip, or a node through the rigid plate) is no result past
-      // that point. The curve stops at the last sample before it, and the run fails.
+      // A run that blew up (a guard trip, a node through the rigid plate, or a quasi-static
+      // increment left far out of balance) is no result past that point. The curve stops at the
+      // last sample before it, and the run fails.
       const bool blew_up = st.failed_at >= 0;
       if (blew_up) {
         const double h = plate_height(m);
         std::fprintf(stderr,
-                     "conica-lab compress: %s: numerical blow-up at %.4g mm of plate travel "
-                     "(strain %.3g; %llu guard rollbacks, a node up to %.3g mm behind the plate); "
-                     "the curve stops at the last sample before it\n",
+                     "conica-lab compress: %s: the body failed at %.4g mm of plate travel (strain "
+                     "%.3g; %llu guard rollbacks, a node up to %.3g mm behind the plate, or no "
+                     "equilibrium within %.3g of the reaction): the curve stops at the last "
+                     "sample before it\n",
                      o->scene.c_str(), st.failed_at * 1e3, st.failed_at / h,
-                     static_cast<unsigned long long>(st.rollbacks), st.max_penetration * 1e3);
+                     static_cast<unsigned long long>(st.rollbacks), st.max_penetration * 1e3,
+                     kQuasiStaticFailure);
         while (c.size() > 1 && c.back().displacement >= st.failed_at) c.pop_back();
       }
       std::string csv = "displacement_mm,force_N\n";
