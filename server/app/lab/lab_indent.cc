@@ -69,8 +69,16 @@ void register_indent(CLI::App& app, Runner* run) {
       qo.samples = o->samples;
       qo.tolerance = o->tolerance;
       QuasiStaticStats qs;
-      const Curve c = quasi_static_curve(m, punch_load(punch), punch_reaction(punch),
-                                         o->depth_mm * 1e-3, qo, &qs);
+      Curve c = quasi_static_curve(m, punch_load(punch), punch_reaction(punch), o->depth_mm * 1e-3,
+                                   qo, &qs);
+      // No equilibrium (an increment left far out of balance): no result from there on.
+      if (qs.failed_at >= 0) {
+        std::fprintf(stderr,
+                     "conica-lab indent: %s: no equilibrium within %.3g of the reaction at %.4g "
+                     "mm: the curve stops at the last sample before it\n",
+                     o->scene.c_str(), kQuasiStaticFailure, qs.failed_at * 1e3);
+        while (c.size() > 1 && c.back().displacement >= qs.failed_at) c.pop_back();
+      }
       FILE* out = o->out == "-" ? stdout : std::fopen(o->out.c_str(), "w");
       if (!out) {
         std::fprintf(stderr, "conica-lab indent: cannot write %s\n", o->out.c_str());
@@ -89,7 +97,8 @@ void register_indent(CLI::App& app, Runner* run) {
                    qs.increments, qs.steps, qs.unconverged == 0 ? "converged" : "NOT CONVERGED",
                    qs.worst_residual, qo.tolerance, qs.unconverged,
                    static_cast<unsigned long long>(qs.rollbacks),
-                   static_cast<unsigned long long>(qs.hard_stops), o->depth_mm, c.back().force);
+                   static_cast<unsigned long long>(qs.hard_stops), c.back().displacement * 1e3,
+                   c.back().force);
       return qs.unconverged == 0 ? 0 : 3;
     };
   });
