@@ -185,23 +185,39 @@ TEST(CompressionTest, VolumeAndShearStiffnessKeepTheCompressedBodyStable) {
 // (1 mm/s on a 20 mm cube, whose viscous and inertial forces are then a small part of the load):
 // static and dynamic answers agree. And the static solve has no rate: damping on the cards does
 // not change it.
-TEST(CompressionTest, StaticCompressionMatchesTheCellAndASlowDynamicTest) {
+// The shear-stiff cube of the test above (H = 20 mm, 3 cells, the Type I card with volume,
+// spread and shear terms) and its homogenised cell's stress at 3, 6, ... 30 % strain.
+constexpr double kCubeH = 0.02;
+struct ShearStiffCube {
+  BodySpec spec;
+  std::vector<double> strains, sigma;  // -, Pa
+};
+ShearStiffCube MakeShearStiffCube() {
   SpringCard card;
   card.law = LawKind::kConical;
   card.conical = ConicalCard{2e8, 1.2e-3, 2e-3, 8e-3, 10e-3, 3};
   card.stiffness_cap = 1000;
   const ConicalLaw law(card.conical);
   const double E0 = LatticeYoungZ(law.k0(), card.conical.L0);
-  const double H = 0.02, kappa = 20 * E0;
-  BodySpec spec = CubeSpec(card, 3, H);
-  spec.bulk_modulus = spec.spread_modulus = kappa;
-  spec.shear_modulus = E0 / 3;
-  Model cell, body;
-  ASSERT_EQ(make_uniaxial_cell(spec.groups, Mapping::kStrain, 0.01, &cell, kappa, E0 / 3), "");
+  const double kappa = 20 * E0;
+  ShearStiffCube c;
+  c.spec = CubeSpec(card, 3, kCubeH);
+  c.spec.bulk_modulus = c.spec.spread_modulus = kappa;
+  c.spec.shear_modulus = E0 / 3;
+  Model cell;
+  EXPECT_EQ(make_uniaxial_cell(c.spec.groups, Mapping::kStrain, 0.01, &cell, kappa, E0 / 3), "");
+  for (int i = 1; i <= 10; ++i) c.strains.push_back(0.03 * i);
+  c.sigma = cell_stress_curve(cell, c.strains);
+  return c;
+}
+
+TEST(CompressionTest, StaticCompressionMatchesTheCellAndASlowDynamicTest) {
+  const ShearStiffCube cube = MakeShearStiffCube();
+  const BodySpec& spec = cube.spec;
+  const std::vector<double>&strains = cube.strains, &sigma = cube.sigma;
+  const double H = kCubeH;
+  Model body;
   ASSERT_EQ(build_model(spec, &body), "");
-  std::vector<double> strains;
-  for (int i = 1; i <= 10; ++i) strains.push_back(0.03 * i);
-  const std::vector<double> sigma = cell_stress_curve(cell, strains);
   CompressionStats st;
   const Curve quasi = static_compression_curve(body, 0.3, 10, &st);
   const Curve dynamic = compression_curve(body, 1e-3, 0.3, 10);
@@ -230,16 +246,10 @@ TEST(CompressionTest, StaticCompressionMatchesTheCellAndASlowDynamicTest) {
 // stepped as the body thread steps it compresses like the homogeneous cell (an independent
 // one-cell computation) within 1 % to 30 % strain, at 0.6 mm/s.
 TEST(CompressionTest, ServedMultiRateBodyCompressesLikeTheCell) {
-  SpringCard card;
-  card.law = LawKind::kConical;
-  card.conical = ConicalCard{2e8, 1.2e-3, 2e-3, 8e-3, 10e-3, 3};
-  card.stiffness_cap = 1000;
-  const ConicalLaw law(card.conical);
-  const double E0 = LatticeYoungZ(law.k0(), card.conical.L0);
-  const double H = 0.02, kappa = 20 * E0;
-  BodySpec spec = CubeSpec(card, 3, H);
-  spec.bulk_modulus = spec.spread_modulus = kappa;
-  spec.shear_modulus = E0 / 3;
+  ShearStiffCube cube = MakeShearStiffCube();
+  BodySpec& spec = cube.spec;
+  const std::vector<double>&strains = cube.strains, &sigma = cube.sigma;
+  const double H = kCubeH;
   spec.options.dt = 1e-3;
   spec.options.newton_iterations = 4;
   spec.options.cg_iterations = 40;
@@ -249,12 +259,8 @@ TEST(CompressionTest, ServedMultiRateBodyCompressesLikeTheCell) {
   spec.options.body_rate_hz = 50;
   spec.options.refactor_every = 10;
   spec.options.refactor_iterations = 10;
-  Model cell, body;
-  ASSERT_EQ(make_uniaxial_cell(spec.groups, Mapping::kStrain, 0.01, &cell, kappa, E0 / 3), "");
+  Model body;
   ASSERT_EQ(build_model(spec, &body), "");
-  std::vector<double> strains;
-  for (int i = 1; i <= 10; ++i) strains.push_back(0.03 * i);
-  const std::vector<double> sigma = cell_stress_curve(cell, strains);
   CompressionStats st;
   const Curve served = compression_curve(body, 0.6e-3, 0.3, 10, &st, true);
   EXPECT_NEAR(st.dt, 0.02, 1e-12);  // the body's step, 1 / 50 Hz
