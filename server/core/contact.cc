@@ -431,6 +431,11 @@ Vec3 nearest_surface_point(const Model& m, const std::vector<Vec3>& x, const int
   return at;
 }
 
+// The unit axis of probe k's tool when it is a plane (gather_candidates' `plane`), else null.
+const Vec3* plane_axis(const Model& m, int k) {
+  return m.probes[k].shape == ToolShape::kPlane ? &m.probes[k].axis : nullptr;
+}
+
 // The surface point the proxy rides on until its next update: the nearest point of the listed
 // triangles when it is within `reach` of the proxy (p->anchor -1 otherwise).
 void anchor_proxy(const Model& m, const std::vector<Vec3>& x, const int* list, int count,
@@ -691,7 +696,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   const bool was_placed = p->proxy_placed;
   const int nt = static_cast<int>(m.surface.size());
   const bool spec_is_sphere = m.probes[k].shape == ToolShape::kSphere;
-  const Vec3* plane = m.probes[k].shape == ToolShape::kPlane ? &m.probes[k].axis : nullptr;
+  const Vec3* plane = plane_axis(m, k);
   // The proxy never moves deeper than this into the surface it sees (the barrier's linear
   // extension starts there).
   const double g_stop = 0.9 * kContactDepthFraction * R;
@@ -920,8 +925,8 @@ void hold_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCandid
   if (candidates) {
     candidates->reserve(m);
     candidates->triangles.clear();
-    const Vec3* plane = m.probes[k].shape == ToolShape::kPlane ? &m.probes[k].axis : nullptr;
-    gather_candidates(m, x, p->proxy, p->proxy, reach, kCandidateSkin * R, plane, candidates);
+    gather_candidates(m, x, p->proxy, p->proxy, reach, kCandidateSkin * R, plane_axis(m, k),
+                      candidates);
   }
   const int nt = static_cast<int>(m.surface.size());
   const int* cand = candidates ? candidates->triangles.data() : nullptr;

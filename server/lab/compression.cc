@@ -36,6 +36,11 @@ double interpolate(const std::vector<double>& x, const std::vector<double>& y, d
 
 }  // namespace
 
+void cut_at_failure(Curve* curve, double failed_at) {
+  if (failed_at < 0) return;
+  while (curve->size() > 1 && curve->back().displacement >= failed_at) curve->pop_back();
+}
+
 bool ensure_top_plate(BodySpec* spec) {
   if (!spec->planes.empty()) return false;
   double top = -std::numeric_limits<double>::infinity();

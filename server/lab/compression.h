@@ -28,6 +28,10 @@ struct CurvePoint {
 };
 using Curve = std::vector<CurvePoint>;
 
+// Drops the points of `curve` at or past plate travel `failed_at` (m; < 0: none), keeping the
+// first: what a run that failed there may still report.
+void cut_at_failure(Curve* curve, double failed_at);
+
 // Adds a top plate touching the body's highest node (normal -z) when `spec` has no plane.
 // Returns true when it added one.
 bool ensure_top_plate(BodySpec* spec);

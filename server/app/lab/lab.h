@@ -7,6 +7,9 @@
 #include <string>
 #include <vector>
 
+#include "io/curve_reader.h"
+#include "lab/compression.h"
+
 namespace conica::lab {
 
 // A command sets *run to the function that executes it after parsing; it returns the process
@@ -45,6 +48,11 @@ struct TradeoffUnits {
 bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, std::string* error,
                     double probe_stiffness = 100, double strain = 0.3,
                     const std::string& coarse_liver = "", const TradeoffUnits& units = {});
+
+// Reads measured compression curves (io::read_curve against `request`) into `out`, printing each
+// warning, and the first error, as "ME: ...". False on an error.
+bool read_measured_curves(const char* me, const std::vector<std::string>& paths,
+                          const io::CurveRequest& request, std::vector<Curve>* out);
 
 // Runs `/usr/bin/python3 scripts/NAME.py ARGS...` from the source tree to draw a figure.
 // Returns the exit status; prints why on failure.

@@ -126,19 +126,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
       if (Model body; build_model(spec, &body).empty() && !body.planes.empty())
         request.height = plate_height(body);
       std::vector<Curve> curves;
-      for (const std::string& path : o->data) {
-        auto c = io::read_curve(path, request);
-        if (!c) {
-          std::fprintf(stderr, "conica-lab calibrate: %s\n", c.error().c_str());
-          return 2;
-        }
-        for (const std::string& w : c.value().warnings)
-          std::fprintf(stderr, "conica-lab calibrate: warning: %s\n", w.c_str());
-        Curve curve;
-        for (const io::CurveSample& s : c.value().samples)
-          curve.push_back({s.displacement, s.force});
-        curves.push_back(std::move(curve));
-      }
+      if (!read_measured_curves("conica-lab calibrate", o->data, request, &curves)) return 2;
       FitOptions fo = o->fit;
       if (o->method == "static") {
         fo.method = FitMethod::kStatic;

@@ -113,23 +113,12 @@ void register_compress(CLI::App& app, Runner* run) {
         return 2;
       }
       // The measured curves, read before the run (units and reach against the body's height).
+      const double height = plate_height(m);
       std::vector<Curve> measured;
       io::CurveRequest request;
-      request.height = plate_height(m);
+      request.height = height;
       request.max_strain = o->to_strain;
-      for (const std::string& path : o->data) {
-        auto r = io::read_curve(path, request);
-        if (!r) {
-          std::fprintf(stderr, "conica-lab compress: %s\n", r.error().c_str());
-          return 2;
-        }
-        for (const std::string& w : r.value().warnings)
-          std::fprintf(stderr, "conica-lab compress: warning: %s\n", w.c_str());
-        Curve curve;
-        for (const io::CurveSample& p : r.value().samples)
-          curve.push_back({p.displacement, p.force});
-        measured.push_back(std::move(curve));
-      }
+      if (!read_measured_curves("conica-lab compress", o->data, request, &measured)) return 2;
       if (!o->bonded && m.planes[0].friction > 0)
         std::fprintf(stderr,
                      "conica-lab compress: frictional plates: the moving plate with Coulomb "
@@ -144,8 +133,7 @@ void register_compress(CLI::App& app, Runner* run) {
         qo.samples = o->samples;
         qo.tolerance = o->tolerance;
         QuasiStaticStats qs;
-        c = quasi_static_curve(m, plate_load(m), plate_reaction(), o->to_strain * plate_height(m),
-                               qo, &qs);
+        c = quasi_static_curve(m, plate_load(m), plate_reaction(), o->to_strain * height, qo, &qs);
         st.steps = qs.steps;
         st.dt = qo.dt;
         st.rollbacks = qs.rollbacks;
@@ -176,16 +164,15 @@ void register_compress(CLI::App& app, Runner* run) {
       // last sample before it, and the run fails.
       const bool blew_up = st.failed_at >= 0;
       if (blew_up) {
-        const double h = plate_height(m);
         std::fprintf(stderr,
                      "conica-lab compress: %s: the body failed at %.4g mm of plate travel (strain "
                      "%.3g; %llu guard rollbacks, a node up to %.3g mm behind the plate, or no "
                      "equilibrium within %.3g of the reaction): the curve stops at the last "
                      "sample before it\n",
-                     o->scene.c_str(), st.failed_at * 1e3, st.failed_at / h,
+                     o->scene.c_str(), st.failed_at * 1e3, st.failed_at / height,
                      static_cast<unsigned long long>(st.rollbacks), st.max_penetration * 1e3,
                      kQuasiStaticFailure);
-        while (c.size() > 1 && c.back().displacement >= st.failed_at) c.pop_back();
+        cut_at_failure(&c, st.failed_at);
       }
       std::string csv = "displacement_mm,force_N\n";
       char line[96];
@@ -204,7 +191,7 @@ void register_compress(CLI::App& app, Runner* run) {
                    "conica-lab compress: %s, height %.4g mm, %ld %s steps of %.4g ms, plate "
                    "penalty %.4g N/m, max penetration %.3g mm, rollbacks %llu, force at %.4g mm: "
                    "%.6g N, step time %.4g us, layer spread %.3g %% of the half width\n",
-                   o->scene.c_str(), plate_height(m) * 1e3, st.steps,
+                   o->scene.c_str(), height * 1e3, st.steps,
                    o->static_solve || o->quasi_static || o->bonded
                        ? "static (implicit)"
                        : integrator_name(m.options.integrator),
@@ -224,15 +211,14 @@ void register_compress(CLI::App& app, Runner* run) {
           return 2;
         }
         int first = 0;
-        const double h = plate_height(m);
         while (first + 1 < static_cast<int>(grid.size()) &&
-               grid[first] < o->skip_strain * h - 1e-12)
+               grid[first] < o->skip_strain * height - 1e-12)
           ++first;
         std::fprintf(stderr,
                      "conica-lab compress: mean relative error %.3f %% against the mean of %zu "
                      "measured curve(s), strain %.3g to %.3g (%zu points)\n",
                      100 * average_relative_error(model, mean, first), measured.size(),
-                     grid[first] / h, grid.back() / h, grid.size() - first);
+                     grid[first] / height, grid.back() / height, grid.size() - first);
       }
       if (!o->plot.empty()) {
         std::string data = o->out;

@@ -77,7 +77,7 @@ void register_indent(CLI::App& app, Runner* run) {
                      "conica-lab indent: %s: no equilibrium within %.3g of the reaction at %.4g "
                      "mm: the curve stops at the last sample before it\n",
                      o->scene.c_str(), kQuasiStaticFailure, qs.failed_at * 1e3);
-        while (c.size() > 1 && c.back().displacement >= qs.failed_at) c.pop_back();
+        cut_at_failure(&c, qs.failed_at);
       }
       FILE* out = o->out == "-" ? stdout : std::fopen(o->out.c_str(), "w");
       if (!out) {

@@ -9,6 +9,23 @@
 
 namespace conica::lab {
 
+bool read_measured_curves(const char* me, const std::vector<std::string>& paths,
+                          const io::CurveRequest& request, std::vector<Curve>* out) {
+  for (const std::string& path : paths) {
+    auto r = io::read_curve(path, request);
+    if (!r) {
+      std::fprintf(stderr, "%s: %s\n", me, r.error().c_str());
+      return false;
+    }
+    for (const std::string& w : r.value().warnings)
+      std::fprintf(stderr, "%s: warning: %s\n", me, w.c_str());
+    Curve curve;
+    for (const io::CurveSample& s : r.value().samples) curve.push_back({s.displacement, s.force});
+    out->push_back(std::move(curve));
+  }
+  return true;
+}
+
 int run_plot_script(const std::string& name, const std::string& args) {
   const std::string cmd =
       std::string("/usr/bin/python3 '") + CONICA_SOURCE_DIR + "/scripts/" + name + ".py' " + args;
