@@ -10,6 +10,7 @@
 #include "../counting_new.h"
 #include "core/body.h"
 #include "core/step.h"
+#include "probed_block.h"
 #include "tissue_bar.h"
 
 namespace conica {
@@ -82,23 +83,12 @@ TEST(AllocationTest, SurfaceToolStepAllocatesNothing) {
   for (Integrator integ :
        {Integrator::kSymplecticEuler, Integrator::kExplicitEuler, Integrator::kImplicitEuler})
     for (ToolShape shape : {ToolShape::kPunch, ToolShape::kPlane}) {
-      BodySpec b;
-      b.mesh = make_box_lattice(Vec3(0.04, 0.04, 0.02), {4, 4, 2});
-      SpringCard conical;
-      conical.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};
-      conical.stiffness_cap = 20;
-      b.groups.push_back({"all", conical, kAllFamilies, {}, Vec3::Zero(), 10});
-      FixedSelector base;
-      base.kind = FixedSelector::Kind::kPlane;
-      b.fixed.push_back(base);
-      b.options.integrator = integ;
-      b.options.mass_damping = 5;
-      ProbeSpec p;
+      BodySpec b = testing_meshes::ProbedBlock(integ);  // 40 x 40 x 20 mm, top at z = 20 mm
+      ProbeSpec& p = b.probes[0];
       p.radius = 0.012;
       p.contact = ContactModel::kSurface;
       p.shape = shape;
       p.bonded = shape == ToolShape::kPunch;
-      b.probes.push_back(p);
       Model m;
       ASSERT_EQ(build_model(b, &m), "");
       State s = make_state(m);
