@@ -206,6 +206,12 @@ struct FitOptions {
   double stroke_margin = 1.02;  // a card's stroke is at least this times its springs' largest
                                 // strain in the fit range (kStatic uses static_stroke_margin)
   double static_stroke_margin = 1.05;  // the cylinder's rim cells strain more than the body
+  // The fitted material stays strongly elliptic (core/stability.h) under uniaxial compression to
+  // this times max_strain: where the cell with the cards and the scene's shear share would lose
+  // it (its compressed springs' sideways softening beats its shear stiffness, and a body buckles
+  // there), the shear term is raised to the least that keeps it. Only for scenes with a shear
+  // term; 0: off (the scene's shear share only).
+  double stability_margin = 1.02;
   double static_tolerance = 1e-5;
   int stroke_raises = 1;       // kStatic: a full body that collapses before the end of the travel
   double stroke_raise = 1.08;  // raises the stroke bound by this factor, at most this often      //

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "core/stability.h"
 #include "lab/calibration.h"
 #include "lab/calibration_stages.h"
 
@@ -187,24 +188,73 @@ std::vector<SpringGroupSpec> Evaluator::groups(const std::vector<ConicalCard>& c
   return split_groups(p_.spec, cards);
 }
 
-// The scene's shear stiffness keeps its ratio to the lattice's shear modulus.
-static double shear_for(const Problem& p, const std::vector<SpringGroupSpec>& groups) {
-  return p.spec.shear_modulus > 0 ? p.volume.shear_ratio * lattice_shear(lattice_moduli(groups))
-                                  : 0.0;
+// The scene's shear stiffness keeps its ratio to the lattice's shear modulus, raised where the
+// material would lose strong ellipticity before options.stability_margin x max_strain (then the
+// least shear modulus that keeps it, a root found on the cell; every modulus scaled by a common
+// factor scales it too, so forces stay proportional to that factor).
+static double shear_for(const Problem& p, const std::vector<SpringGroupSpec>& groups,
+                        double ratio) {
+  if (!(p.spec.shear_modulus > 0)) return 0.0;
+  const LatticeModuli lat = lattice_moduli(groups);
+  const double mu0 = p.volume.shear_ratio * lattice_shear(lat);
+  const double strain = p.options.stability_margin * p.options.max_strain;
+  if (!(strain > 0) || !(strain < 1)) return mu0;
+  auto bulk = [&](double mu) {
+    return p.volume.with_volume ? bulk_for_poisson(lat, ratio, mu) : 0.0;
+  };
+  Model cell;
+  if (!make_uniaxial_cell(groups, p.spec.mapping, 0.01, &cell, bulk(mu0), mu0).empty()) return mu0;
+  // The softest wave's modulus at that strain: smooth and increasing in mu.
+  auto wave = [&](double mu) {
+    cell.shear_modulus = mu;
+    cell.bulk_modulus = bulk(mu);
+    return uniaxial_softest_wave(cell, Vec3::UnitZ(), strain).modulus;
+  };
+  double lo = mu0, glo = wave(mu0);
+  if (glo > 0 || !std::isfinite(glo)) return mu0;
+  double hi = 2 * mu0, ghi = wave(hi);
+  for (int k = 0; k < 8 && !(ghi > 0); ++k) {
+    lo = hi;
+    glo = ghi;
+    hi *= 2;
+    ghi = wave(hi);
+  }
+  if (!(ghi > 0) || !std::isfinite(glo)) return hi;  // no shear share keeps it
+  // The root of the modulus in mu (Illinois regula falsi), to 1e-10 relative: a smooth function
+  // of the cards, as the fit's finite-difference Jacobians need.
+  int side = 0;
+  for (int it = 0; it < 60 && hi - lo > 1e-10 * hi; ++it) {
+    const double mu = (lo * ghi - hi * glo) / (ghi - glo);
+    const double g = wave(mu);
+    if (!std::isfinite(g)) break;
+    if (g > 0) {
+      hi = mu;
+      ghi = g;
+      if (side == 1) glo *= 0.5;
+      side = 1;
+    } else {
+      lo = mu;
+      glo = g;
+      if (side == -1) ghi *= 0.5;
+      side = -1;
+    }
+    if (std::abs(g) <= 1e-12 * mu) return mu;
+  }
+  return hi;
 }
 
 // Volume stiffness: the scene's Poisson ratio (or the asked one) kept as the cards change, so
 // that kappa scales with the spring moduli and forces stay proportional to a common factor.
 double Evaluator::bulk_for(const std::vector<SpringGroupSpec>& groups, double ratio) const {
-  return p_.volume.with_volume
-             ? bulk_for_poisson(lattice_moduli(groups), ratio, shear_for(p_, groups))
-             : 0.0;
+  return element_moduli(groups, ratio).bulk;
 }
 
 ElementModuli Evaluator::element_moduli(const std::vector<SpringGroupSpec>& groups,
                                         double ratio) const {
-  const double bulk = bulk_for(groups, ratio);
-  return ElementModuli{bulk, p_.volume.spread_ratio * bulk, shear_for(p_, groups)};
+  const double shear = shear_for(p_, groups, ratio);
+  const double bulk =
+      p_.volume.with_volume ? bulk_for_poisson(lattice_moduli(groups), ratio, shear) : 0.0;
+  return ElementModuli{bulk, p_.volume.spread_ratio * bulk, shear};
 }
 
 std::vector<double> Evaluator::surrogate(const std::vector<ConicalCard>& cards) {

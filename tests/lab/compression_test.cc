@@ -8,6 +8,9 @@
 #include <cmath>
 #include <cstdio>
 
+#include "core/stability.h"
+#include "lab/quasi_static.h"
+
 namespace conica::lab {
 namespace {
 
@@ -329,6 +332,64 @@ TEST(CompressionTest, LayerSpreadMeasuresTheDepartureFromTheHomogeneousState) {
                                          ax * r.z());
                            })),
               0.1 * lat * std::sqrt(2.0) * a, 1e-12);
+}
+
+// The material check (core/stability.h) against the body: a lattice cube of a stiffening card
+// with little shear stiffness between frictionless plates, solved quasi-statically. The analysis
+// says the material loses strong ellipticity at some strain e*: the body follows the homogenised
+// cell up to shortly before e*, and does not carry on evenly much past it (it finds no
+// equilibrium, or its layers leave the homogeneous state). (The converse does not hold: a material
+// that stays elliptic can still let a finite body buckle.)
+TEST(CompressionTest, TheBodyBucklesWhereItsMaterialLosesStrongEllipticity) {
+  SpringCard card;
+  card.law = LawKind::kConical;
+  card.conical = ConicalCard{2e8, 1.2e-3, 2e-3, 8e-3, 10e-3, 3};
+  card.stiffness_cap = 1000;
+  const double H = 0.02, travel = 0.6;
+  const int samples = 15;
+  for (double mu : {1e3}) {
+    BodySpec spec = CubeSpec(card, 3, H);
+    spec.bulk_modulus = spec.spread_modulus = 4e4;
+    spec.shear_modulus = mu;
+    Model body, cell;
+    ASSERT_EQ(build_model(spec, &body), "");
+    ASSERT_EQ(make_uniaxial_cell(spec.groups, Mapping::kStrain, 0.01, &cell, 4e4, mu), "");
+    const CompressionStability c = uniaxial_compression_stability(body, Vec3::UnitZ(), travel);
+    body.planes[0].stiffness = rigid_plate_stiffness(body, false);
+    QuasiStaticOptions qo;
+    qo.samples = samples;
+    QuasiStaticStats st;
+    double first_uneven = -1;
+    int j = 0;
+    const Curve curve =
+        quasi_static_curve(body, plate_load(body), plate_reaction(), travel * H, qo, &st,
+                           [&](const Model& m, const State& s) {
+                             ++j;
+                             if (first_uneven < 0 && layer_spread(m, s.x) > 0.02 * 0.5 * H)
+                               first_uneven = travel * j / samples;
+                           });
+    std::vector<double> strains;
+    for (int k = 1; k <= samples; ++k) strains.push_back(travel * k / samples);
+    const std::vector<double> sigma = cell_stress_curve(cell, strains);
+    const double failed = st.failed_at >= 0 ? st.failed_at / H : -1;
+    std::printf(
+        "shear %.0f Pa: onset of strong-ellipticity loss %.3f; body failed at %.3f, uneven from "
+        "%.3f (-1: never)\n",
+        mu, c.onset_strain, failed, first_uneven);
+    // Where the material is elliptic the body is the cell.
+    const double stable_to = c.onset_strain < 0 ? travel : c.onset_strain - 0.03;
+    for (int k = 1; k <= samples && strains[k - 1] <= stable_to; ++k)
+      EXPECT_NEAR(curve[k].force / (sigma[k - 1] * H * H), 1.0, 0.01)
+          << "strain " << strains[k - 1] << ", shear " << mu;
+    ASSERT_GT(c.onset_strain, 0.3);
+    ASSERT_LT(c.onset_strain, travel - 0.08);
+    // Past the onset the body fails or leaves the homogeneous state, within 0.08 of it (two
+    // increments).
+    const double broke =
+        failed >= 0 && (first_uneven < 0 || failed < first_uneven) ? failed : first_uneven;
+    EXPECT_GE(broke, c.onset_strain - 0.03);
+    EXPECT_LE(broke, c.onset_strain + 0.08);
+  }
 }
 
 }  // namespace

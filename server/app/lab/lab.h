@@ -54,6 +54,13 @@ bool tradeoff_sweep(bool quick, bool verbose, std::vector<TradeoffRow>* rows, st
 bool read_measured_curves(const char* me, const std::vector<std::string>& paths,
                           const io::CurveRequest& request, std::vector<Curve>* out);
 
+// The strain (engineering, along `axis`) at which the model's material loses strong
+// ellipticity under uniaxial compression (core/stability.h), up to `to_strain`; -1: it does not.
+// When it does, says so as "ME: warning: ...": a compression past it buckles instead of
+// shortening evenly.
+double warn_material_stability(const char* me, const Model& model, const Vec3& axis,
+                               double to_strain);
+
 // Runs `/usr/bin/python3 scripts/NAME.py ARGS...` from the source tree to draw a figure.
 // Returns the exit status; prints why on failure.
 int run_plot_script(const std::string& name, const std::string& args);

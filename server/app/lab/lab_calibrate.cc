@@ -85,6 +85,10 @@ void register_calibrate(CLI::App& app, Runner* run) {
       ->capture_default_str();
   cmd->add_option("--poisson-min", o->fit.poisson_min, "lowest Poisson ratio of that grid")
       ->capture_default_str();
+  cmd->add_option("--stability-margin", o->fit.stability_margin,
+                  "the material stays strongly elliptic under compression to this x max strain "
+                  "(the shear term raised where needed; 0: off)")
+      ->capture_default_str();
   cmd->add_option("--max-layer-spread", o->fit.max_layer_spread,
                   "full-body runs whose node layers spread by more than this fraction of the "
                   "half width at the end (leaned, buckled) are not used")

@@ -124,6 +124,8 @@ void register_compress(CLI::App& app, Runner* run) {
                      "conica-lab compress: frictional plates: the moving plate with Coulomb "
                      "friction %.4g\n",
                      m.planes[0].friction);
+      const double onset =
+          warn_material_stability("conica-lab compress", m, -m.planes[0].normal, o->to_strain);
       CompressionStats st;
       Curve c;
       if (o->bonded || o->quasi_static) {
@@ -172,6 +174,11 @@ void register_compress(CLI::App& app, Runner* run) {
                      o->scene.c_str(), st.failed_at * 1e3, st.failed_at / height,
                      static_cast<unsigned long long>(st.rollbacks), st.max_penetration * 1e3,
                      kQuasiStaticFailure);
+        if (onset >= 0 && st.failed_at / height >= onset - 0.02)
+          std::fprintf(stderr,
+                       "conica-lab compress: the failure is past the material's stability limit "
+                       "(%.1f %% strain, above)\n",
+                       100 * onset);
         cut_at_failure(&c, st.failed_at);
       }
       std::string csv = "displacement_mm,force_N\n";

@@ -170,6 +170,10 @@ void register_library(CLI::App& app, Runner* run) {
   cmd->add_option("--full-iterations", o->fit.full_iterations,
                   "-1: surrogate only (no full body; fast, for tests of the sweep itself)")
       ->capture_default_str();
+  cmd->add_option("--stability-margin", o->fit.stability_margin,
+                  "the material stays strongly elliptic under compression to this x max strain "
+                  "(the shear term raised where needed; 0: off)")
+      ->capture_default_str();
   cmd->add_option("--threads", o->fit.threads, "threads per recipe (0: one per hardware thread)")
       ->capture_default_str();
   cmd->callback([o, run] {
@@ -209,7 +213,8 @@ void register_library(CLI::App& app, Runner* run) {
                                   " poisson_grid=" + std::to_string(fo.poisson_grid) +
                                   " poisson_min=" + g(fo.poisson_min, 17) +
                                   " space_mapping=" + std::to_string(fo.space_mapping) +
-                                  " full_iterations=" + std::to_string(fo.full_iterations);
+                                  " full_iterations=" + std::to_string(fo.full_iterations) +
+                                  " stability_margin=" + g(fo.stability_margin, 17);
       struct Unit {
         Recipe recipe;
         std::string key, provenance;

@@ -2,6 +2,7 @@
 #include <cstdlib>
 
 #include "app/lab/lab.h"
+#include "core/stability.h"
 
 #ifndef CONICA_SOURCE_DIR
 #define CONICA_SOURCE_DIR "."
@@ -24,6 +25,21 @@ bool read_measured_curves(const char* me, const std::vector<std::string>& paths,
     out->push_back(std::move(curve));
   }
   return true;
+}
+
+double warn_material_stability(const char* me, const Model& model, const Vec3& axis,
+                               double to_strain) {
+  if (model.tetrahedra.empty() && model.hexahedra.empty()) return -1;
+  const CompressionStability c = uniaxial_compression_stability(model, axis, to_strain);
+  if (c.onset_strain >= 0)
+    std::fprintf(stderr,
+                 "%s: warning: the material loses strong ellipticity under uniaxial compression "
+                 "at %.1f %% strain (its compressed springs' sideways softening outgrows its "
+                 "shear stiffness; softest wave along (%.2f, %.2f, %.2f)): a compression past it "
+                 "buckles in layers instead of shortening evenly, and a curve past it is no "
+                 "result. A card fitted with `conica-lab library` (stability margin) keeps it.\n",
+                 me, 100 * c.onset_strain, c.wave.normal.x(), c.wave.normal.y(), c.wave.normal.z());
+  return c.onset_strain;
 }
 
 int run_plot_script(const std::string& name, const std::string& args) {
