@@ -73,8 +73,7 @@ HomogenisedState homogenised_state(const Model& m, const Mat3& F) {
       // [e'' u u^T + (e' / l)(I - u u^T)] (x) r r^T
       const Mat3 G = d2 * u * u.transpose() + (d1 / l) * (Mat3::Identity() - u * u.transpose());
       for (int A = 0; A < 3; ++A)
-        for (int B = 0; B < 3; ++B)
-          out.tangent.block<3, 3>(3 * A, 3 * B) += (r(A) * r(B)) * G;
+        for (int B = 0; B < 3; ++B) out.tangent.block<3, 3>(3 * A, 3 * B) += (r(A) * r(B)) * G;
     }
   }
   out.energy /= v0;

@@ -48,8 +48,7 @@ TEST(StabilityTest, HomogenisedStateIsTheBodyEnergyOfAnAffineDeformation) {
     Fp.data()[k] += step;
     Fm.data()[k] -= step;
     const HomogenisedState hp = homogenised_state(m, Fp), hm = homogenised_state(m, Fm);
-    EXPECT_NEAR((hp.energy - hm.energy) / (2 * step), h.stress.data()[k],
-                1e-6 * h.stress.norm())
+    EXPECT_NEAR((hp.energy - hm.energy) / (2 * step), h.stress.data()[k], 1e-6 * h.stress.norm())
         << "stress component " << k;
     const Mat3 dP = (hp.stress - hm.stress) / (2 * step);
     for (int j = 0; j < 9; ++j)
