@@ -205,7 +205,9 @@ struct FitOptions {
   int reweightings = 3;         // kStatic: L1 reweightings after each least-squares fit
   double stroke_margin = 1.02;  // a card's stroke is at least this times its springs' largest
                                 // strain in the fit range (kStatic uses static_stroke_margin)
-  double static_stroke_margin = 1.05;  // the cylinder's rim cells strain more than the body
+  double static_stroke_margin = 1.05;  // kept from when the full bodies' collapse was put down
+                                       // to the rim cells' coils (it was the material's lost
+                                       // ellipticity: stability_margin)
   // The fitted material stays strongly elliptic (core/stability.h) under uniaxial compression to
   // this times max_strain: where the cell with the cards and the scene's shear share would lose
   // it (its compressed springs' sideways softening beats its shear stiffness, and a body buckles

@@ -90,8 +90,9 @@ void run_chain(const Problem& problem, Chain* c) {
     if (e < c->best.error) c->best = {e, xk, run.force};
     if (step == o.space_mapping + o.stroke_raises) break;
     if (!even) {
-      // The body collapsed before the end of the travel (its rim cells reach their coils'
-      // solid height first): a longer stroke, the surrogate refitted from scratch.
+      // The body collapsed before the end of the travel (with stability_margin off, usually its
+      // material losing strong ellipticity, core/stability.h): a longer stroke, the surrogate
+      // refitted from scratch.
       if (p.smin[0] >= 0.99 * o.bounds.stroke_max) break;
       p.smin[0] = std::min(0.99 * o.bounds.stroke_max, p.smin[0] * o.stroke_raise);
       c->lines.push_back("Poisson " + fmt(ev.nu, 3) + ": stroke bound raised to " +
