@@ -3,11 +3,14 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include "core/body.h"
+#include "core/step.h"
 #include "core/volume.h"
 
 namespace conica {
@@ -265,6 +268,121 @@ CompressionStability uniaxial_compression_stability(const Model& m, const Vec3& 
     e_last = e;
     if (e >= max_strain) break;
   }
+  return out;
+}
+
+}  // namespace conica
+
+namespace conica {
+
+EquilibriumStability equilibrium_stability(const Model& m, const State& state) {
+  const int nn = m.num_nodes();
+  EquilibriumStability out;
+  // The mesh graph: nodes that share a spring or an element (each node its own neighbour).
+  std::vector<std::vector<int>> adj(nn);
+  for (int i = 0; i < nn; ++i) adj[i].push_back(i);
+  auto link = [&](int a, int b) {
+    adj[a].push_back(b);
+    adj[b].push_back(a);
+  };
+  for (int k = 0; k < m.num_springs(); ++k) link(m.spring_i[k], m.spring_j[k]);
+  auto link_all = [&](const auto& nodes) {
+    for (size_t a = 0; a < nodes.size(); ++a)
+      for (size_t b = a + 1; b < nodes.size(); ++b) link(nodes[a], nodes[b]);
+  };
+  for (const auto& t : m.tetrahedra) link_all(t);
+  for (const auto& h : m.hexahedra) link_all(h);
+  for (auto& a : adj) {
+    std::sort(a.begin(), a.end());
+    a.erase(std::unique(a.begin(), a.end()), a.end());
+  }
+  // Distance-2 colouring (greedy): two nodes of one colour have no neighbour in common, so the
+  // force change at node j under a colour's perturbation comes from its one neighbour of it.
+  std::vector<int> colour(nn, -1), seen;
+  int colours = 0;
+  for (int i = 0; i < nn; ++i) {
+    seen.clear();
+    for (int j : adj[i])
+      for (int k : adj[j])
+        if (colour[k] >= 0) seen.push_back(colour[k]);
+    std::sort(seen.begin(), seen.end());
+    int c = 0;
+    for (int s : seen) {
+      if (s == c)
+        ++c;
+      else if (s > c)
+        break;
+    }
+    colour[i] = c;
+    colours = std::max(colours, c + 1);
+  }
+  std::vector<std::vector<int>> members(colours);
+  for (int i = 0; i < nn; ++i) members[colour[i]].push_back(i);
+  // The perturbation: 1e-6 of the median spring rest length (or of the body's size).
+  double scale = 0;
+  if (m.num_springs() > 0) {
+    std::vector<double> l = m.rest_length;
+    std::nth_element(l.begin(), l.begin() + l.size() / 2, l.end());
+    scale = l[l.size() / 2];
+  } else {
+    Vec3 lo = m.rest[0], hi = m.rest[0];
+    for (const Vec3& x : m.rest) {
+      lo = lo.cwiseMin(x);
+      hi = hi.cwiseMax(x);
+    }
+    scale = (hi - lo).norm();
+  }
+  const double eps = 1e-6 * scale;
+  // Free axes -> unknowns.
+  std::vector<int> dof(3 * nn, -1);
+  int n = 0;
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c)
+      if (m.free_axes[i][c] != 0) dof[3 * i + c] = n++;
+  if (n == 0) {
+    out.factored = true;
+    return out;
+  }
+  State s = state;
+  for (Vec3& v : s.v) v.setZero();
+  Workspace ws(m);
+  std::vector<Vec3> fp(nn);
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int c = 0; c < colours; ++c) {
+    for (int a = 0; a < 3; ++a) {
+      for (int i : members[c]) s.x[i][a] = state.x[i][a] + eps;
+      compute_forces(m, s, ws);
+      fp = ws.force;
+      for (int i : members[c]) s.x[i][a] = state.x[i][a] - eps;
+      compute_forces(m, s, ws);
+      for (int i : members[c]) s.x[i][a] = state.x[i][a];
+      for (int i : members[c]) {
+        const int col = dof[3 * i + a];
+        if (col < 0) continue;
+        for (int j : adj[i])
+          for (int b = 0; b < 3; ++b) {
+            const int row = dof[3 * j + b];
+            if (row < 0) continue;
+            const double kij = -(fp[j][b] - ws.force[j][b]) / (2 * eps);
+            // Symmetrised: (K + K^T) / 2, each entry from both of its columns.
+            entries.emplace_back(row, col, 0.5 * kij);
+            entries.emplace_back(col, row, 0.5 * kij);
+          }
+      }
+    }
+  }
+  Eigen::SparseMatrix<double> K(n, n);
+  K.setFromTriplets(entries.begin(), entries.end());
+  std::vector<double> diag(n);
+  for (int k = 0; k < n; ++k) diag[k] = std::abs(K.coeff(k, k));
+  std::nth_element(diag.begin(), diag.begin() + n / 2, diag.end());
+  out.shift = 1e-5 * diag[n / 2];
+  for (int k = 0; k < n; ++k) K.coeffRef(k, k) += out.shift;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(K);
+  if (ldlt.info() != Eigen::Success) return out;
+  out.factored = true;
+  const Eigen::VectorXd d = ldlt.vectorD();
+  for (int k = 0; k < n; ++k) out.negative += d[k] < 0;
   return out;
 }
 

@@ -75,3 +75,28 @@ SoftestWave uniaxial_softest_wave(const Model& model, const Vec3& axis, double s
                                   int steps = 10, int directions = 400);
 
 }  // namespace conica
+
+namespace conica {
+
+// Stability of one equilibrium of the whole body, boundary included: its stiffness K = -df/dx on
+// the free axes (every spring's exact tangent, a compressed one's negative transverse stiffness
+// -f / l included; the element terms; plates, probes and hard stops as the force pass applies
+// them), by central differences of compute_forces with the nodes perturbed in groups that share
+// no neighbour (a distance-2 colouring of the mesh graph). The equilibrium is stable while K is
+// positive definite: a material that keeps strong ellipticity can still lose it as a body, at
+// its free surface (Biot) or where its discretisation is coarse, and this sees that too.
+// Velocities are taken as zero (the elastic stiffness only).
+struct EquilibriumStability {
+  // Eigenvalues of K below -shift, counted from the signs of an LDL^T factor of K + shift I
+  // (Sylvester's law of inertia): the modes along which the body's energy falls.
+  int negative = 0;
+  // 1e-5 x the median diagonal entry of K (N/m): rigid motions the boundary leaves free (a body
+  // between frictionless plates turns about their normal at no cost) sit at 0 +- round-off and
+  // must not count as unstable.
+  double shift = 0;
+  bool factored = false;  // the factor succeeded (negative is meaningful)
+};
+struct State;
+EquilibriumStability equilibrium_stability(const Model& model, const State& state);
+
+}  // namespace conica

@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "core/multirate.h"
+#include "core/stability.h"
 #include "core/step.h"
 #include "lab/quasi_static.h"
 
@@ -221,6 +222,33 @@ Curve static_compression_curve(const Model& model, double to_strain, int samples
     fill_stats(m, qs.positions, c, plate.stiffness, dt_s, max_pen, qs.steps, qs.step_seconds,
                stats);
   }
+  return out;
+}
+
+CompressionEquilibria compression_equilibria(const Model& model, double to_strain, int samples) {
+  Model m = model;
+  PlaneSpec& plate = m.planes.at(0);
+  const auto [lo, hi] = extent(m, plate.normal);
+  plate.stiffness = std::max(plate.stiffness, rigid_plate_stiffness(m, false));
+  plate.offset = lo;  // first contact
+  QuasiStaticOptions o;
+  o.samples = samples;
+  CompressionEquilibria out;
+  int increment = 0;
+  quasi_static_curve(m, plate_load(m), plate_reaction(), to_strain * (hi - lo), o, nullptr,
+                     [&](const Model& mm, const State& s) {
+                       const double strain = to_strain * ++increment / samples;
+                       if (out.unstable_at >= 0) return;  // the first onset is the answer
+                       const EquilibriumStability e = equilibrium_stability(mm, s);
+                       ++out.checked;
+                       out.factored = out.factored && e.factored;
+                       if (e.factored && e.negative > 0) {
+                         out.unstable_at = strain;
+                         out.modes = e.negative;
+                       } else if (e.factored) {
+                         out.stable_to = strain;
+                       }
+                     });
   return out;
 }
 

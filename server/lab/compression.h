@@ -110,6 +110,22 @@ Curve static_compression_curve(const Model& model, double to_strain, int samples
                                CompressionStats* stats = nullptr, double tolerance = 1e-5,
                                int max_steps = 15, double dt_s = 1.0);
 
+// Stability of the body along its quasi-static compression (core/stability.h,
+// equilibrium_stability): plane 0 moved as in static_compression_curve, in `samples` equal
+// increments to to_strain, and at each increment's equilibrium the count of the body's modes
+// along which its energy falls. A body whose material keeps strong ellipticity can still buckle
+// as a whole between the plates (its faces sliding sideways on frictionless plates, a short
+// column's shear buckling) or at its surface; past that strain a dynamic or served run leaves the
+// homogeneous path and a quasi-static one follows a branch that no real run takes.
+struct CompressionEquilibria {
+  double stable_to = 0;     // the largest strain checked with no such mode before any had one
+  double unstable_at = -1;  // the first strain where one was found (-1: none up to to_strain)
+  int modes = 0;            // how many there
+  int checked = 0;          // increments checked
+  bool factored = true;     // every check's factor succeeded
+};
+CompressionEquilibria compression_equilibria(const Model& model, double to_strain, int samples);
+
 // The lattice cell of `groups` (a 1 x 1 x 1 hexahedron of side `side`, all 28 springs, the
 // given mapping, volume and shear stiffness bulk_modulus and shear_modulus in Pa; a uniform
 // deformation leaves the Gauss-point spread at zero), its base held along z, one corner pinned

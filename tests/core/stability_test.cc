@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdio>
 
@@ -131,6 +132,73 @@ TEST(StabilityTest, ShearStiffnessDelaysTheOnset) {
   EXPECT_NEAR(std::abs(weak.wave.normal.z()), 1.0, 1e-3);
   EXPECT_NEAR(weak.wave.polarisation.z(), 0.0, 1e-3);
   EXPECT_NEAR(weak.wave.modulus, 0.0, 1e-3 * 1e3);
+}
+
+// The body's stiffness at a state, from a different route than equilibrium_stability's (central
+// second differences of the stored energy, potential_energy, on the free axes): its eigenvalues.
+Eigen::VectorXd EnergyHessianEigenvalues(const Model& m, const State& s0) {
+  std::vector<std::pair<int, int>> dof;
+  for (int i = 0; i < m.num_nodes(); ++i)
+    for (int c = 0; c < 3; ++c)
+      if (m.free_axes[i][c] != 0) dof.push_back({i, c});
+  const int n = static_cast<int>(dof.size());
+  const double h = 1e-6;  // m
+  State s = s0;
+  auto energy = [&](int a, double da, int b, double db) {
+    s.x[dof[a].first][dof[a].second] += da;
+    s.x[dof[b].first][dof[b].second] += db;
+    const double e = potential_energy(m, s);
+    s.x[dof[a].first][dof[a].second] -= da;
+    s.x[dof[b].first][dof[b].second] -= db;
+    return e;
+  };
+  Eigen::MatrixXd H(n, n);
+  for (int a = 0; a < n; ++a)
+    for (int b = a; b < n; ++b) {
+      H(a, b) =
+          (energy(a, h, b, h) - energy(a, h, b, -h) - energy(a, -h, b, h) + energy(a, -h, b, -h)) /
+          (4 * h * h);
+      H(b, a) = H(a, b);
+    }
+  return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(H).eigenvalues();
+}
+
+TEST(StabilityTest, EquilibriumStabilityCountsTheEnergyHessiansNegativeEigenvalues) {
+  // The stiffening block with little shear stiffness (its material loses strong ellipticity at
+  // 48 % strain), its base clamped, squeezed along z and stretched across it: the count of modes
+  // along which the energy falls (eigenvalues below -shift) against the eigenvalues of the
+  // energy's Hessian, from none at rest and stretched (-10 %) to many under compression (its
+  // compressed columns' transverse stiffness -f / l; the top is free here).
+  const Model m = [] {
+    Model b = StiffeningBlock(4e4, 1e3);
+    for (int i = 0; i < b.num_nodes(); ++i)
+      if (b.rest[i].z() < 1e-9) {
+        b.free_axes[i] = Vec3::Zero();
+        b.fixed[i] = 7;
+      }
+    return b;
+  }();
+  int unstable = 0, stable = 0;
+  for (double strain : {-0.1, 0.0, 0.1, 0.3, 0.5, 0.7}) {
+    State s = make_state(m);
+    const double lateral = 1 + 0.3 * strain;
+    for (int i = 0; i < m.num_nodes(); ++i)
+      s.x[i] = Vec3(lateral * m.rest[i].x(), lateral * m.rest[i].y(), (1 - strain) * m.rest[i].z());
+    // A small irregular displacement, so that no count rests on the symmetry of the lattice.
+    for (int i = 0; i < m.num_nodes(); ++i)
+      if (m.fixed[i] == 0) s.x[i] += 1e-4 * Vec3(std::sin(3.1 * i), std::cos(1.7 * i), std::sin(i));
+    const EquilibriumStability e = equilibrium_stability(m, s);
+    ASSERT_TRUE(e.factored) << strain;
+    const Eigen::VectorXd ev = EnergyHessianEigenvalues(m, s);
+    int below = 0;
+    for (int k = 0; k < ev.size(); ++k) below += ev[k] < -e.shift;
+    std::printf("strain %.2f: %d negative (energy Hessian: %d below -%.3g N/m; lowest %.4g)\n",
+                strain, e.negative, below, e.shift, ev[0]);
+    EXPECT_EQ(e.negative, below) << "strain " << strain;
+    (e.negative > 0 ? unstable : stable) += 1;
+  }
+  EXPECT_GE(stable, 1);
+  EXPECT_GE(unstable, 1);
 }
 
 }  // namespace

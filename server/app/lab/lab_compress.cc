@@ -11,6 +11,10 @@
 //   it (its step, Newton cap and factor schedule: lab/compression.h).
 //   --data FILE...: the mean of these measured curves on the output grid and the mean relative
 //   error of the run against it from --skip-strain on (the calibration's metric).
+//   --check-stability: before the run, the body's equilibrium along a quasi-static compression
+//   to --to-strain checked for modes that lower its energy (lab/compression.h,
+//   compression_equilibria): the strain where the body buckles as a whole, which the material's
+//   check at load cannot see.
 //   A run that blew up or found no equilibrium fails (exit 3), its curve cut before it.
 #include <cmath>
 #include <cstdio>
@@ -39,6 +43,7 @@ void register_compress(CLI::App& app, Runner* run) {
     bool static_solve = false;
     double static_tolerance = 1e-5;
     bool served = false;
+    bool check_stability = false;
     std::vector<std::string> data;
     double skip_strain = 0.03;
   };
@@ -54,6 +59,9 @@ void register_compress(CLI::App& app, Runner* run) {
   cmd->add_option("--out", o->out, "CSV displacement_mm,force_N ('-': stdout)")
       ->capture_default_str();
   cmd->add_option("--plot", o->plot, "also draw the curve to this PNG file");
+  cmd->add_flag("--check-stability", o->check_stability,
+                "first check the body's equilibrium for buckling modes along a quasi-static "
+                "compression to --to-strain (25 increments)");
   cmd->add_flag("--bonded", o->bonded,
                 "bond both plates to the faces they touch (no slip); implies --quasi-static");
   cmd->add_option("--friction", o->friction,
@@ -126,6 +134,26 @@ void register_compress(CLI::App& app, Runner* run) {
                      m.planes[0].friction);
       const double onset =
           warn_material_stability("conica-lab compress", m, -m.planes[0].normal, o->to_strain);
+      double structural = -1;  // strain where the body's equilibrium was found unstable
+      if (o->check_stability) {
+        const CompressionEquilibria e = compression_equilibria(m, o->to_strain, 25);
+        structural = e.unstable_at;
+        if (e.unstable_at < 0)
+          std::fprintf(stderr,
+                       "conica-lab compress: the body's equilibrium is stable to %.1f %% strain "
+                       "(%d increments checked%s)\n",
+                       100 * e.stable_to, e.checked,
+                       e.factored ? "" : "; some factors failed and are not counted");
+        else
+          std::fprintf(stderr,
+                       "conica-lab compress: WARNING: the body's equilibrium is stable to %.1f "
+                       "%% strain and unstable at %.1f %% (%d mode(s) along which its energy "
+                       "falls): the body buckles as a whole there (e.g. its faces slide "
+                       "sideways on frictionless plates) though its material is stable; a "
+                       "dynamic or served run leaves the homogeneous state there, and a "
+                       "quasi-static curve past it follows a branch no real run takes\n",
+                       100 * e.stable_to, 100 * e.unstable_at, e.modes);
+      }
       CompressionStats st;
       Curve c;
       if (o->bonded || o->quasi_static) {
@@ -179,6 +207,11 @@ void register_compress(CLI::App& app, Runner* run) {
                        "conica-lab compress: the failure is past the material's stability limit "
                        "(%.1f %% strain, above)\n",
                        100 * onset);
+        if (structural >= 0 && st.failed_at / height >= structural - 0.02)
+          std::fprintf(stderr,
+                       "conica-lab compress: the failure is past the strain where the body's "
+                       "equilibrium was found unstable (%.1f %% strain, above)\n",
+                       100 * structural);
         cut_at_failure(&c, st.failed_at);
       }
       std::string csv = "displacement_mm,force_N\n";
