@@ -235,20 +235,21 @@ CompressionEquilibria compression_equilibria(const Model& model, double to_strai
   o.samples = samples;
   CompressionEquilibria out;
   int increment = 0;
-  quasi_static_curve(m, plate_load(m), plate_reaction(), to_strain * (hi - lo), o, nullptr,
-                     [&](const Model& mm, const State& s) {
-                       const double strain = to_strain * ++increment / samples;
-                       if (out.unstable_at >= 0) return;  // the first onset is the answer
-                       const EquilibriumStability e = equilibrium_stability(mm, s);
-                       ++out.checked;
-                       out.factored = out.factored && e.factored;
-                       if (e.factored && e.negative > 0) {
-                         out.unstable_at = strain;
-                         out.modes = e.negative;
-                       } else if (e.factored) {
-                         out.stable_to = strain;
-                       }
-                     });
+  quasi_static_curve(
+      m, plate_load(m), plate_reaction(), to_strain * (hi - lo), o, nullptr,
+      [&](const Model& mm, const State& s) {
+        const double strain = to_strain * ++increment / samples;
+        const EquilibriumStability e = equilibrium_stability(mm, s);
+        ++out.checked;
+        out.factored = out.factored && e.factored;
+        if (e.factored && e.negative > 0) {
+          out.unstable_at = strain;
+          out.modes = e.negative;
+        } else if (e.factored) {
+          out.stable_to = strain;
+        }
+      },
+      [&out] { return out.unstable_at >= 0; });  // the first onset is the answer
   return out;
 }
 

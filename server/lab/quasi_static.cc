@@ -20,7 +20,7 @@ double out_of_balance(const Model& m, const Workspace& ws) {
 
 Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionFn& reaction,
                          double travel, const QuasiStaticOptions& o, QuasiStaticStats* stats,
-                         const IncrementFn& increment) {
+                         const IncrementFn& increment, const StopFn& stop) {
   Model m = model;
   SolverOptions& so = m.options;
   so.integrator = Integrator::kImplicitEuler;
@@ -99,8 +99,9 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
       prev[i] = s.x[i];
     }
     u_prev = u;
+    st.increments = j;
+    if (stop && stop()) break;
   }
-  st.increments = o.samples;
   st.rollbacks = s.counters.rollbacks;
   st.hard_stops = s.counters.hard_stops;
   st.positions = s.x;

@@ -74,6 +74,9 @@ using LoadFn = std::function<void(const Model&, State&, double u)>;
 using ReactionFn = std::function<double(const Model&, const State&, const Workspace&)>;
 // Called with the state at the end of every increment (e.g. to record a penetration).
 using IncrementFn = std::function<void(const Model&, const State&)>;
+// Called after every increment (after the IncrementFn): true ends the loading there; the curve's
+// points past it are left at zero and stats count the increments taken.
+using StopFn = std::function<bool()>;
 
 // The curve of reaction against travel from 0 to `travel` (m) in options.samples increments
 // (samples + 1 points, the first at 0). The model's integrator settings are replaced by the
@@ -81,7 +84,8 @@ using IncrementFn = std::function<void(const Model&, const State&)>;
 // contacts and hard stop are kept.
 Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionFn& reaction,
                          double travel, const QuasiStaticOptions& options,
-                         QuasiStaticStats* stats = nullptr, const IncrementFn& increment = {});
+                         QuasiStaticStats* stats = nullptr, const IncrementFn& increment = {},
+                         const StopFn& stop = {});
 
 // Plane 0 (the moving plate, ensure_top_plate) bonded to the body's face under it and placed on
 // it, and the opposite face clamped: a bonded compression. Returns what is wrong, empty on
