@@ -213,8 +213,15 @@ Mat3 axis_frame(const Vec3& axis) {
 }  // namespace
 
 SoftestWave uniaxial_softest_wave(const Model& m, const Vec3& axis, double strain, int steps,
-                                  int directions) {
+                                  int directions, Vec3* stretch) {
   const Mat3 frame = axis_frame(axis);
+  if (stretch && std::abs((*stretch)(2) - (1 - strain)) < 1e-15) {
+    const PathPoint pt = uniaxial_point(m, frame, strain, *stretch);
+    if (pt.solved) {
+      *stretch = pt.stretch;
+      return softest_wave(pt.state.tangent, directions);
+    }
+  }
   Vec3 last = Vec3::Ones();
   for (int q = 1; q <= steps; ++q) {
     const PathPoint pt = uniaxial_point(m, frame, strain * q / steps, last);
@@ -224,7 +231,10 @@ SoftestWave uniaxial_softest_wave(const Model& m, const Vec3& axis, double strai
       return w;
     }
     last = pt.stretch;
-    if (q == steps) return softest_wave(pt.state.tangent, directions);
+    if (q == steps) {
+      if (stretch) *stretch = pt.stretch;
+      return softest_wave(pt.state.tangent, directions);
+    }
   }
   return softest_wave(homogenised_state(m, Mat3::Identity()).tangent, directions);
 }

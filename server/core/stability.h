@@ -70,9 +70,11 @@ CompressionStability uniaxial_compression_stability(const Model& model, const Ve
 
 // The softest wave at uniaxial compression `strain` along `axis` alone (the lateral stretches
 // followed from rest in `steps` steps): a cheap test of one strain for fits. Modulus NaN when the
-// path cannot be solved.
+// path cannot be solved. `stretch` (optional, axis frame): in, a solution at this strain for a
+// nearby model (a fit's last card), from which the point is solved directly (the path from rest
+// when that fails); out, the stretches solved (unchanged when none).
 SoftestWave uniaxial_softest_wave(const Model& model, const Vec3& axis, double strain,
-                                  int steps = 10, int directions = 400);
+                                  int steps = 10, int directions = 400, Vec3* stretch = nullptr);
 
 }  // namespace conica
 

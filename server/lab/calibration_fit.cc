@@ -192,8 +192,10 @@ std::vector<SpringGroupSpec> Evaluator::groups(const std::vector<ConicalCard>& c
 // material would lose strong ellipticity before options.stability_margin x max_strain (then the
 // least shear modulus that keeps it, a root found on the cell; every modulus scaled by a common
 // factor scales it too, so forces stay proportional to that factor).
-static double shear_for(const Problem& p, const std::vector<SpringGroupSpec>& groups,
-                        double ratio) {
+// hint: the last root (0: none), bracketed first and updated; stretch: the cell's lateral
+// stretches at the stability strain last solved (the next solve's start), updated.
+static double shear_for(const Problem& p, const std::vector<SpringGroupSpec>& groups, double ratio,
+                        double* hint, Vec3* stretch) {
   if (!(p.spec.shear_modulus > 0)) return 0.0;
   const LatticeModuli lat = lattice_moduli(groups);
   const double mu0 = p.volume.shear_ratio * lattice_shear(lat);
@@ -204,22 +206,41 @@ static double shear_for(const Problem& p, const std::vector<SpringGroupSpec>& gr
   };
   Model cell;
   if (!make_uniaxial_cell(groups, p.spec.mapping, 0.01, &cell, bulk(mu0), mu0).empty()) return mu0;
-  // The softest wave's modulus at that strain: smooth and increasing in mu.
+  // The softest wave's modulus at that strain: smooth and increasing in mu. Each solve of the
+  // lateral stretches starts from the last one's.
   auto wave = [&](double mu) {
     cell.shear_modulus = mu;
     cell.bulk_modulus = bulk(mu);
-    return uniaxial_softest_wave(cell, Vec3::UnitZ(), strain).modulus;
+    return uniaxial_softest_wave(cell, Vec3::UnitZ(), strain, 10, 400, stretch).modulus;
   };
-  double lo = mu0, glo = wave(mu0);
-  if (glo > 0 || !std::isfinite(glo)) return mu0;
-  double hi = 2 * mu0, ghi = wave(hi);
-  for (int k = 0; k < 8 && !(ghi > 0); ++k) {
-    lo = hi;
-    glo = ghi;
-    hi *= 2;
-    ghi = wave(hi);
+  double lo = 0, glo = 0, hi = 0, ghi = 0;
+  bool bracketed = false;
+  if (*hint > mu0) {
+    // The modulus rises with mu: a bracket of 1e-3 about the last root, when it holds this one.
+    lo = *hint * (1 - 1e-3);
+    hi = *hint * (1 + 1e-3);
+    if (lo > mu0) {
+      glo = wave(lo);
+      if (std::isfinite(glo) && !(glo > 0)) {
+        ghi = wave(hi);
+        bracketed = ghi > 0;
+      }
+    }
   }
-  if (!(ghi > 0) || !std::isfinite(glo)) return hi;  // no shear share keeps it
+  if (!bracketed) {
+    lo = mu0;
+    glo = wave(mu0);
+    if (glo > 0 || !std::isfinite(glo)) return mu0;
+    hi = 2 * mu0;
+    ghi = wave(hi);
+    for (int k = 0; k < 8 && !(ghi > 0); ++k) {
+      lo = hi;
+      glo = ghi;
+      hi *= 2;
+      ghi = wave(hi);
+    }
+    if (!(ghi > 0) || !std::isfinite(glo)) return hi;  // no shear share keeps it
+  }
   // The root of the modulus in mu (Illinois regula falsi), to 1e-10 relative: a smooth function
   // of the cards, as the fit's finite-difference Jacobians need.
   int side = 0;
@@ -238,9 +259,9 @@ static double shear_for(const Problem& p, const std::vector<SpringGroupSpec>& gr
       if (side == -1) ghi *= 0.5;
       side = -1;
     }
-    if (std::abs(g) <= 1e-12 * mu) return mu;
+    if (std::abs(g) <= 1e-12 * mu) return *hint = mu;
   }
-  return hi;
+  return *hint = hi;
 }
 
 // Volume stiffness: the scene's Poisson ratio (or the asked one) kept as the cards change, so
@@ -251,7 +272,14 @@ double Evaluator::bulk_for(const std::vector<SpringGroupSpec>& groups, double ra
 
 ElementModuli Evaluator::element_moduli(const std::vector<SpringGroupSpec>& groups,
                                         double ratio) const {
-  const double shear = shear_for(p_, groups, ratio);
+  double hint = 0;
+  Vec3 stretch = Vec3::Ones();
+  return element_moduli(groups, ratio, &hint, &stretch);
+}
+
+ElementModuli Evaluator::element_moduli(const std::vector<SpringGroupSpec>& groups, double ratio,
+                                        double* shear_hint, Vec3* stretch_hint) const {
+  const double shear = shear_for(p_, groups, ratio, shear_hint, stretch_hint);
   const double bulk =
       p_.volume.with_volume ? bulk_for_poisson(lattice_moduli(groups), ratio, shear) : 0.0;
   return ElementModuli{bulk, p_.volume.spread_ratio * bulk, shear};
@@ -260,7 +288,7 @@ ElementModuli Evaluator::element_moduli(const std::vector<SpringGroupSpec>& grou
 std::vector<double> Evaluator::surrogate(const std::vector<ConicalCard>& cards) {
   ++surrogate_evaluations;
   const std::vector<SpringGroupSpec> g = groups(cards);
-  const ElementModuli em = element_moduli(g, nu);
+  const ElementModuli em = element_moduli(g, nu, &shear_hint_, &stretch_hint_);
   return cell_surrogate(g, p_.spec.mapping, p_.geo, p_.target.grid, em.bulk, em.shear);
 }
 

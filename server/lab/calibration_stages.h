@@ -143,6 +143,8 @@ class Evaluator {
 
   std::vector<SpringGroupSpec> groups(const std::vector<ConicalCard>& cards) const;
   double bulk_for(const std::vector<SpringGroupSpec>& groups, double ratio) const;
+  // Safe to call from several threads at once (full_at's grid): its root is found afresh;
+  // surrogate() brackets it about the last one (shear_hint_).
   ElementModuli element_moduli(const std::vector<SpringGroupSpec>& groups, double ratio) const;
 
   std::vector<double> surrogate(const std::vector<ConicalCard>& cards);  // counted
@@ -168,6 +170,13 @@ class Evaluator {
 
  private:
   const Problem& p_;
+  // The last stable shear modulus found (shear_for): the next card is close to the last one, so
+  // its root is bracketed about this first (the same root, to the same tolerance, in fewer
+  // steps). Used by surrogate() only, which is never called from two threads on one Evaluator.
+  double shear_hint_ = 0;
+  Vec3 stretch_hint_ = Vec3::Ones();  // the cell's lateral stretches at that root
+  ElementModuli element_moduli(const std::vector<SpringGroupSpec>& groups, double ratio,
+                               double* shear_hint, Vec3* stretch_hint) const;
 
  public:
   double nu;
