@@ -231,8 +231,19 @@ CompressionEquilibria compression_equilibria(const Model& model, double to_strai
   const auto [lo, hi] = extent(m, plate.normal);
   plate.stiffness = std::max(plate.stiffness, rigid_plate_stiffness(m, false));
   plate.offset = lo;  // first contact
+  // The static compression's settings (static_compression_curve): each increment's equilibrium
+  // to a steady reaction (1e-5) by inexact Newton steps, at most 15 steps, parts when it does not
+  // settle. Close enough for the sign of the stiffness's eigenvalues at the onset's resolution
+  // (one increment), and minutes faster than balancing every node to 1e-4 on a body near its
+  // limit.
   QuasiStaticOptions o;
   o.samples = samples;
+  o.settle = Settle::kReactionSteady;
+  o.tolerance = 1e-5;
+  o.max_iterations = 15;
+  o.newton_iterations = 2;
+  o.cg_iterations = std::max(m.options.cg_iterations, 100);
+  o.cg_tolerance = std::max(m.options.cg_tolerance, 1e-4);
   CompressionEquilibria out;
   int increment = 0;
   quasi_static_curve(
