@@ -139,6 +139,28 @@ double body_volume(const Model& model) {
   return v;
 }
 
+std::vector<std::vector<int>> node_neighbours(const Model& m) {
+  const int nn = m.num_nodes();
+  std::vector<std::vector<int>> adj(nn);
+  for (int i = 0; i < nn; ++i) adj[i].push_back(i);
+  auto link = [&](int a, int b) {
+    adj[a].push_back(b);
+    adj[b].push_back(a);
+  };
+  for (int k = 0; k < m.num_springs(); ++k) link(m.spring_i[k], m.spring_j[k]);
+  auto link_all = [&](const auto& nodes) {
+    for (size_t a = 0; a < nodes.size(); ++a)
+      for (size_t b = a + 1; b < nodes.size(); ++b) link(nodes[a], nodes[b]);
+  };
+  for (const auto& t : m.tetrahedra) link_all(t);
+  for (const auto& h : m.hexahedra) link_all(h);
+  for (auto& a : adj) {
+    std::sort(a.begin(), a.end());
+    a.erase(std::unique(a.begin(), a.end()), a.end());
+  }
+  return adj;
+}
+
 double hex_volume(const std::vector<Vec3>& nodes, const std::array<int, 8>& h) {
   // Six tetrahedra around the diagonal 0-6.
   static constexpr int kTets[6][4] = {{0, 1, 2, 6}, {0, 2, 3, 6}, {0, 3, 7, 6},

@@ -75,6 +75,11 @@ double hex_volume(const std::vector<Vec3>& nodes, const std::array<int, 8>& h);
 // Rest volume of a model's elements (m^3): the sum of |volume| over tetrahedra and hexahedra.
 double body_volume(const Model& model);
 
+// The mesh graph of a model: for every node the nodes it shares a spring or an element with,
+// itself included, sorted. The nonzero 3 x 3 blocks of the body's stiffness (allocates; load
+// time and checks).
+std::vector<std::vector<int>> node_neighbours(const Model& model);
+
 // Two nodes on the z axis joined by one spring of `card` (raw mapping): node 0 fixed at the
 // origin, node 1 at z = l0 (m) free along z only, each of `mass` kg. For single-spring experiments
 // against analytic values. Precondition: a valid card.

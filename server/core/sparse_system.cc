@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <utility>
 
+#include "core/body.h"
 #include "core/element_terms.h"
 #include "core/step.h"
 
@@ -40,23 +41,13 @@ struct SystemFactor::Cholmod {
 SystemFactor::SystemFactor(const Model& m, Kind kind)
     : nn_(m.num_nodes()), kind_(kind), c_(std::make_unique<Cholmod>()) {
   const int nn = nn_, ns = m.num_springs();
-  // Block pattern: for every block column J the block rows I <= J that can be nonzero.
-  std::vector<std::vector<int>> cols(nn);
-  auto add = [&](int i, int j) {
-    if (i > j) std::swap(i, j);
-    cols[j].push_back(i);
-  };
-  for (int i = 0; i < nn; ++i) add(i, i);
-  for (int k = 0; k < ns; ++k) add(m.spring_i[k], m.spring_j[k]);
-  for_each_element(m, [&](auto, int, const auto& nodes) {
-    for (int a : nodes)
-      for (int b : nodes) add(a, b);
-  });
+  // Block pattern: for every block column J the block rows I <= J that can be nonzero (the
+  // mesh graph's neighbours of J up to J; sorted).
+  const std::vector<std::vector<int>> graph = node_neighbours(m);
   std::vector<int> start(nn + 1, 0), rows;
   for (int j = 0; j < nn; ++j) {
-    std::sort(cols[j].begin(), cols[j].end());
-    cols[j].erase(std::unique(cols[j].begin(), cols[j].end()), cols[j].end());
-    rows.insert(rows.end(), cols[j].begin(), cols[j].end());
+    const std::vector<int>& g = graph[j];
+    rows.insert(rows.end(), g.begin(), std::upper_bound(g.begin(), g.end(), j));
     start[j + 1] = static_cast<int>(rows.size());
   }
   auto block = [&](int i, int j) {

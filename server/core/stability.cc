@@ -281,31 +281,10 @@ CompressionStability uniaxial_compression_stability(const Model& m, const Vec3& 
   return out;
 }
 
-}  // namespace conica
-
-namespace conica {
-
 EquilibriumStability equilibrium_stability(const Model& m, const State& state) {
   const int nn = m.num_nodes();
   EquilibriumStability out;
-  // The mesh graph: nodes that share a spring or an element (each node its own neighbour).
-  std::vector<std::vector<int>> adj(nn);
-  for (int i = 0; i < nn; ++i) adj[i].push_back(i);
-  auto link = [&](int a, int b) {
-    adj[a].push_back(b);
-    adj[b].push_back(a);
-  };
-  for (int k = 0; k < m.num_springs(); ++k) link(m.spring_i[k], m.spring_j[k]);
-  auto link_all = [&](const auto& nodes) {
-    for (size_t a = 0; a < nodes.size(); ++a)
-      for (size_t b = a + 1; b < nodes.size(); ++b) link(nodes[a], nodes[b]);
-  };
-  for (const auto& t : m.tetrahedra) link_all(t);
-  for (const auto& h : m.hexahedra) link_all(h);
-  for (auto& a : adj) {
-    std::sort(a.begin(), a.end());
-    a.erase(std::unique(a.begin(), a.end()), a.end());
-  }
+  const std::vector<std::vector<int>> adj = node_neighbours(m);
   // Distance-2 colouring (greedy): two nodes of one colour have no neighbour in common, so the
   // force change at node j under a colour's perturbation comes from its one neighbour of it.
   std::vector<int> colour(nn, -1), seen;

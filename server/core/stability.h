@@ -76,10 +76,6 @@ CompressionStability uniaxial_compression_stability(const Model& model, const Ve
 SoftestWave uniaxial_softest_wave(const Model& model, const Vec3& axis, double strain,
                                   int steps = 10, int directions = 400, Vec3* stretch = nullptr);
 
-}  // namespace conica
-
-namespace conica {
-
 // Stability of one equilibrium of the whole body, boundary included: its stiffness K = -df/dx on
 // the free axes (every spring's exact tangent, a compressed one's negative transverse stiffness
 // -f / l included; the element terms; plates, probes and hard stops as the force pass applies

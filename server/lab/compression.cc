@@ -188,15 +188,22 @@ Curve compression_curve(const Model& model, double rate, double to_strain, int s
   return out;
 }
 
-Curve static_compression_curve(const Model& model, double to_strain, int samples,
-                               CompressionStats* stats, double tolerance, int max_steps,
-                               double dt_s) {
-  Model m = model;
-  PlaneSpec& plate = m.planes.at(0);
-  const Vec3 n = plate.normal;
-  const auto [lo, hi] = extent(m, n);
-  plate.stiffness = std::max(plate.stiffness, rigid_plate_stiffness(m, false));
+namespace {
+
+// The static compression's set-up, shared by static_compression_curve and
+// compression_equilibria: plane 0 of *m made a rigid plate at first contact (returns the body's
+// height along it, m), and the quasi-static settings: each increment's equilibrium to a steady
+// reaction (`tolerance`) by inexact Newton steps, at most max_steps steps of dt_s.
+double rigid_plate_at_contact(Model* m) {
+  PlaneSpec& plate = m->planes.at(0);
+  const auto [lo, hi] = extent(*m, plate.normal);
+  plate.stiffness = std::max(plate.stiffness, rigid_plate_stiffness(*m, false));
   plate.offset = lo;  // first contact
+  return hi - lo;
+}
+
+QuasiStaticOptions static_options(const Model& m, int samples, double tolerance, int max_steps,
+                                  double dt_s) {
   QuasiStaticOptions o;
   o.samples = samples;
   o.settle = Settle::kReactionSteady;
@@ -207,10 +214,21 @@ Curve static_compression_curve(const Model& model, double to_strain, int samples
   o.newton_iterations = 2;
   o.cg_iterations = std::max(m.options.cg_iterations, 100);
   o.cg_tolerance = std::max(m.options.cg_tolerance, 1e-4);
+  return o;
+}
+
+}  // namespace
+
+Curve static_compression_curve(const Model& model, double to_strain, int samples,
+                               CompressionStats* stats, double tolerance, int max_steps,
+                               double dt_s) {
+  Model m = model;
+  const double height = rigid_plate_at_contact(&m);
+  const QuasiStaticOptions o = static_options(m, samples, tolerance, max_steps, dt_s);
   double max_pen = 0;
   QuasiStaticStats qs;
   const Curve out = quasi_static_curve(
-      m, plate_load(m), plate_reaction(), to_strain * (hi - lo), o, &qs,
+      m, plate_load(m), plate_reaction(), to_strain * height, o, &qs,
       [&max_pen](const Model& mm, const State& s) {
         for (const Vec3& x : s.x)
           max_pen = std::max(max_pen, s.planes[0].offset - mm.planes[0].normal.dot(x));
@@ -219,7 +237,7 @@ Curve static_compression_curve(const Model& model, double to_strain, int samples
     Counters c;
     c.rollbacks = qs.rollbacks;
     c.hard_stops = qs.hard_stops;
-    fill_stats(m, qs.positions, c, plate.stiffness, dt_s, max_pen, qs.steps, qs.step_seconds,
+    fill_stats(m, qs.positions, c, m.planes[0].stiffness, dt_s, max_pen, qs.steps, qs.step_seconds,
                stats);
   }
   return out;
@@ -227,27 +245,15 @@ Curve static_compression_curve(const Model& model, double to_strain, int samples
 
 CompressionEquilibria compression_equilibria(const Model& model, double to_strain, int samples) {
   Model m = model;
-  PlaneSpec& plate = m.planes.at(0);
-  const auto [lo, hi] = extent(m, plate.normal);
-  plate.stiffness = std::max(plate.stiffness, rigid_plate_stiffness(m, false));
-  plate.offset = lo;  // first contact
-  // The static compression's settings (static_compression_curve): each increment's equilibrium
-  // to a steady reaction (1e-5) by inexact Newton steps, at most 15 steps, parts when it does not
-  // settle. Close enough for the sign of the stiffness's eigenvalues at the onset's resolution
-  // (one increment), and minutes faster than balancing every node to 1e-4 on a body near its
-  // limit.
-  QuasiStaticOptions o;
-  o.samples = samples;
-  o.settle = Settle::kReactionSteady;
-  o.tolerance = 1e-5;
-  o.max_iterations = 15;
-  o.newton_iterations = 2;
-  o.cg_iterations = std::max(m.options.cg_iterations, 100);
-  o.cg_tolerance = std::max(m.options.cg_tolerance, 1e-4);
+  const double height = rigid_plate_at_contact(&m);
+  // The static compression's settings (a steady reaction to 1e-5, at most 15 steps of 1 s): close
+  // enough for the sign of the stiffness's eigenvalues at the onset's resolution (one increment),
+  // and minutes faster than balancing every node to 1e-4 on a body near its limit.
+  const QuasiStaticOptions o = static_options(m, samples, 1e-5, 15, 1.0);
   CompressionEquilibria out;
   int increment = 0;
   quasi_static_curve(
-      m, plate_load(m), plate_reaction(), to_strain * (hi - lo), o, nullptr,
+      m, plate_load(m), plate_reaction(), to_strain * height, o, nullptr,
       [&](const Model& mm, const State& s) {
         const double strain = to_strain * ++increment / samples;
         const EquilibriumStability e = equilibrium_stability(mm, s);
