@@ -262,6 +262,10 @@ std::string build_model(const BodySpec& spec, Model* out) {
   }
   if (spec.spread_modulus > 0 && !(spec.bulk_modulus > 0))
     return "spread_modulus needs bulk_modulus > 0";
+  if (!(spec.shear_stiffening >= 0) || !std::isfinite(spec.shear_stiffening))
+    return "shear_stiffening must be >= 0 (got " + fmt(spec.shear_stiffening) + ")";
+  if (spec.shear_stiffening > 0 && !(spec.shear_modulus > 0))
+    return "shear_stiffening needs shear_modulus > 0 (it stiffens the shear term)";
 
   // Element volumes, lumped masses and raw springs with volume shares.
   std::vector<double> mass(nn, 0.0);
@@ -346,6 +350,7 @@ std::string build_model(const BodySpec& spec, Model* out) {
   m.tetrahedra = mesh.tetrahedra;
   m.hexahedra = mesh.hexahedra;
   m.shear_modulus = spec.shear_modulus;
+  m.shear_stiffening = spec.shear_stiffening;
   if (m.shear_modulus > 0) {
     std::array<Vec3, 8> x;
     std::array<Vec3, 64> b;

@@ -49,9 +49,10 @@ struct BodySpec {
   std::vector<SpringGroupSpec> groups;
   std::vector<FixedSelector> fixed;
   Mapping mapping = Mapping::kStrain;
-  double bulk_modulus = 0;    // Pa, volume stiffness of every element (core/volume.h); 0: none
-  double spread_modulus = 0;  // Pa, hexahedra's Gauss-point spread stiffness (model.h); 0: none
-  double shear_modulus = 0;   // Pa, isochoric neo-Hookean shear stiffness (volume.h); 0: none
+  double bulk_modulus = 0;      // Pa, volume stiffness of every element (core/volume.h); 0: none
+  double spread_modulus = 0;    // Pa, hexahedra's Gauss-point spread stiffness (model.h); 0: none
+  double shear_modulus = 0;     // Pa, isochoric neo-Hookean shear stiffness (volume.h); 0: none
+  double shear_stiffening = 0;  // dimensionless beta >= 0: the shear term stiffens (Yeoh, volume.h)
   SolverOptions options;
   std::vector<ProbeSpec> probes;
   std::vector<PlaneSpec> planes;

@@ -24,11 +24,11 @@ void shear_element(const Model& m, const std::vector<Vec3>& xs, const std::array
     Mat3 F = Mat3::Zero();
     for (int a = 0; a < N; ++a) F.noalias() += x[a] * b[a].transpose();
     Mat3 P;
-    double jm;
-    isochoric_neo_hookean(F.data(), m.shear_modulus, P.data(), &jm);
+    double c;
+    isochoric_yeoh(F.data(), m.shear_modulus, m.shear_stiffening, P.data(), &c);
     P *= *v0;
     for (int a = 0; a < N; ++a) f[a].noalias() -= P * b[a];
-    *coef++ = *v0++ * m.shear_modulus * jm;
+    *coef++ = *v0++ * c;
   }
   for (int a = 0; a < N; ++a) force[nodes[a]] += f[a];
 }
@@ -114,8 +114,8 @@ double ShearTerm::energy(const Model& m, const std::vector<Vec3>& x) {
   auto point = [&](const int* nodes, int n) {
     const Mat3 F = deformation_gradient(x, nodes, n, b);
     Mat3 P;
-    double jm;
-    e += *v0++ * isochoric_neo_hookean(F.data(), m.shear_modulus, P.data(), &jm);
+    double c;
+    e += *v0++ * isochoric_yeoh(F.data(), m.shear_modulus, m.shear_stiffening, P.data(), &c);
     b += n;
   };
   for (const auto& t : m.tetrahedra) point(t.data(), 4);

@@ -205,6 +205,7 @@ struct Model {
   // of a hexahedron, with shape-function gradients at rest (tetrahedra 4 each, then hexahedra
   // 64 each, point-major) and rest volume shares |v0| (1 per tetrahedron, 8 per hexahedron).
   double shear_modulus = 0;      // Pa, mu; 0: none
+  double shear_stiffening = 0;   // beta (dimensionless): Yeoh's (mu / 2) beta (I1b - 3)^2 on top
   std::vector<Vec3> shear_b;     // 1/m
   std::vector<double> shear_v0;  // m^3
 

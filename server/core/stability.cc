@@ -32,8 +32,8 @@ double element_density(const Model& m, const Mat3& F, Mat3* P) {
   }
   if (m.shear_modulus > 0) {
     Mat3 p;
-    double jm;
-    w += isochoric_neo_hookean(F.data(), m.shear_modulus, p.data(), &jm);
+    double c;
+    w += isochoric_yeoh(F.data(), m.shear_modulus, m.shear_stiffening, p.data(), &c);
     *P += p;
   }
   return w;

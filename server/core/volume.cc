@@ -106,24 +106,26 @@ bool hex_shape_gradients(const Vec3* x, Vec3* b, double* v0) {
   return true;
 }
 
-double isochoric_neo_hookean(const double* f, double mu, double* p, double* jm) {
+double isochoric_yeoh(const double* f, double mu, double beta, double* p, double* coef) {
   const Eigen::Map<const Eigen::Matrix3d> F(f);
   Eigen::Map<Eigen::Matrix3d> P(p);
   const double J = F.determinant();
   if (!(J > 0)) {
     P.setZero();
-    *jm = 1;
+    *coef = mu;
     return 0;
   }
   const double c = std::cbrt(J), m = 1 / (c * c), i1 = F.squaredNorm();
-  *jm = m;
+  const double d = m * i1 - 3;                // I1b - 3 >= 0
+  const double mt = mu * (1 + 2 * beta * d);  // 2 dW/dI1b
+  *coef = mt * m;
   // F^-T = cofactor(F) / J.
   Eigen::Matrix3d cof;
   cof.col(0) = F.col(1).cross(F.col(2));
   cof.col(1) = F.col(2).cross(F.col(0));
   cof.col(2) = F.col(0).cross(F.col(1));
-  P = mu * m * (F - (i1 / (3 * J)) * cof);
-  return 0.5 * mu * (m * i1 - 3);
+  P = mt * m * (F - (i1 / (3 * J)) * cof);
+  return 0.5 * mu * d * (1 + beta * d);
 }
 
 }  // namespace conica

@@ -24,6 +24,15 @@
 // to the body's shear modulus and nothing to its bulk modulus, and unlike pair springs it keeps
 // its shear stiffness under compression (d2W / dF13^2 = mu J^(-2/3) at a uniaxial state). The
 // implicit system takes its Laplacian part, h^2 v0 mu J^(-2/3) (b_a . b_b) I.
+//
+// Shear stiffening (shear_stiffening beta >= 0, dimensionless): the shear term becomes Yeoh's
+// second-order isochoric energy
+//   W = v0 (mu / 2) ((I1b - 3) + beta (I1b - 3)^2),   I1b = J^(-2/3) tr(F^T F) >= 3,
+// an isotropic stiffening that needs no pair spring's compression: its tangent shear modulus
+// grows with the distortion, mu (1 + 2 beta (I1b - 3)), in every direction at once (pair springs
+// stiffen only along themselves, and a compressed one pushes sideways: -f / l). beta = 0 is the
+// neo-Hookean term. Yeoh's energy with mu, beta >= 0 is polyconvex, so it keeps the material
+// strongly elliptic. The implicit system's Laplacian takes mu (1 + 2 beta (I1b - 3)) for mu.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -58,9 +67,10 @@ double tet_shape_gradients(const Vec3* x, Vec3* b);
 // v0[q] the point's share of the rest volume (signed). Returns false for a degenerate point.
 bool hex_shape_gradients(const Vec3* x, Vec3* b, double* v0);
 
-// Isochoric neo-Hookean at deformation gradient F (3 x 3, column-major in f[9]): energy density
-// (mu / 2)(J^(-2/3) tr(F^T F) - 3) returned, first Piola stress into p[9] and J^(-2/3) into
-// *jm. F with det <= 0: energy 0, stress 0, *jm 1 (the hard stop keeps springs from inverting).
-double isochoric_neo_hookean(const double* f, double mu, double* p, double* jm);
+// The shear term's energy density W / v0 (above) at deformation gradient F (3 x 3, column-major
+// in f[9]) returned, its first Piola stress into p[9] and the Laplacian's coefficient per rest
+// volume, mu (1 + 2 beta (I1b - 3)) J^(-2/3) in Pa, into *coef. F with det <= 0: energy 0,
+// stress 0, *coef mu (the hard stop keeps springs from inverting).
+double isochoric_yeoh(const double* f, double mu, double beta, double* p, double* coef);
 
 }  // namespace conica

@@ -132,10 +132,10 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   SceneFile out;
   if (!scene.material().empty()) {
     if (scene.group_size() > 0 || scene.bulk_modulus() != 0 || scene.spread_modulus() != 0 ||
-        scene.shear_modulus() != 0)
+        scene.shear_modulus() != 0 || scene.shear_stiffening() != 0)
       return Error{loc.at("material") +
-                   "a scene with a material gives no group, bulk_modulus, spread_modulus or "
-                   "shear_modulus of its own (the card has them)"};
+                   "a scene with a material gives no group, bulk_modulus, spread_modulus, "
+                   "shear_modulus or shear_stiffening of its own (the card has them)"};
     std::string e;
     const std::string path = find_material(scene.material(), base_dir, &e);
     if (path.empty()) return Error{loc.at("material") + e};
@@ -154,10 +154,11 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
         card.has_solver() || !card.material().empty())
       return Error{loc.at("material") + "material \"" + scene.material() + "\": " + path +
                    ": a material card holds groups and bulk_modulus, spread_modulus, "
-                   "shear_modulus only (and at least one group)"};
+                   "shear_modulus, shear_stiffening only (and at least one group)"};
     scene.set_bulk_modulus(card.bulk_modulus());
     scene.set_spread_modulus(card.spread_modulus());
     scene.set_shear_modulus(card.shear_modulus());
+    scene.set_shear_stiffening(card.shear_stiffening());
     *scene.mutable_group() = card.group();
     out.material = scene.material();
     out.material_path = path;
@@ -247,6 +248,13 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
                  num(b.shear_modulus) + ")"};
   if (b.spread_modulus > 0 && !(b.bulk_modulus > 0))
     return Error{loc.at("spread_modulus") + "spread_modulus needs bulk_modulus > 0"};
+  b.shear_stiffening = scene.shear_stiffening();
+  if (!(b.shear_stiffening >= 0) || !std::isfinite(b.shear_stiffening))
+    return Error{loc.at("shear_stiffening") + "shear_stiffening must be >= 0 (got " +
+                 num(b.shear_stiffening) + ")"};
+  if (b.shear_stiffening > 0 && !(b.shear_modulus > 0))
+    return Error{loc.at("shear_stiffening") +
+                 "shear_stiffening needs shear_modulus > 0 (it stiffens the shear term)"};
 
   if (scene.group_size() == 0) return Error{name + ": a scene needs at least one group { ... }"};
   for (int g = 0; g < scene.group_size(); ++g) {

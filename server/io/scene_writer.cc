@@ -55,6 +55,7 @@ void set_material(const BodySpec& b, v1::Scene* out) {
   out->set_bulk_modulus(b.bulk_modulus);
   out->set_spread_modulus(b.spread_modulus);
   out->set_shear_modulus(b.shear_modulus);
+  out->set_shear_stiffening(b.shear_stiffening);
   for (const SpringGroupSpec& g : b.groups) set_group(g, out->add_group());
 }
 

@@ -235,6 +235,7 @@ struct FitResult {
                                   // bulk_modulus kept)
   double shear_modulus = 0;       // Pa, its shear stiffness (the scene's ratio to the lattice's
                                   // shear modulus kept)
+  double shear_stiffening = 0;    // its shear term's stiffening (the scene's, core/volume.h)
   double poisson = 0;             // its small-strain Poisson ratio (body_poisson)
   std::vector<double> grid;       // (points) plate travel, m
   std::vector<double> data;       // (points) mean measured force, N

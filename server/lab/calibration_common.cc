@@ -209,7 +209,7 @@ std::vector<double> surrogate_force(const BodySpec& spec,
   if (!build_model(spec, &m).empty() || m.planes.empty())
     return std::vector<double>(grid.size(), std::numeric_limits<double>::quiet_NaN());
   return detail::cell_surrogate(groups, spec.mapping, {plate_height(m), cross_section(m)}, grid,
-                                spec.bulk_modulus, spec.shear_modulus);
+                                spec.bulk_modulus, spec.shear_modulus, spec.shear_stiffening);
 }
 
 std::vector<double> surrogate_force(const BodySpec& spec, const ConicalCard& card,

@@ -106,9 +106,12 @@ std::vector<double> encode(const std::vector<CardShape>& s, const Layout& L) {
 
 std::vector<double> cell_surrogate(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
                                    const BodyGeometry& geo, const std::vector<double>& grid,
-                                   double bulk_modulus, double shear_modulus) {
+                                   double bulk_modulus, double shear_modulus,
+                                   double shear_stiffening) {
   Model cell;
-  if (!make_uniaxial_cell(groups, mapping, 0.01, &cell, bulk_modulus, shear_modulus).empty())
+  if (!make_uniaxial_cell(groups, mapping, 0.01, &cell, bulk_modulus, shear_modulus,
+                          shear_stiffening)
+           .empty())
     return std::vector<double>(grid.size(), std::numeric_limits<double>::quiet_NaN());
   std::vector<double> strains(grid.size());
   for (size_t k = 0; k < grid.size(); ++k) strains[k] = grid[k] / geo.height;
@@ -205,7 +208,10 @@ static double shear_for(const Problem& p, const std::vector<SpringGroupSpec>& gr
     return p.volume.with_volume ? bulk_for_poisson(lat, ratio, mu) : 0.0;
   };
   Model cell;
-  if (!make_uniaxial_cell(groups, p.spec.mapping, 0.01, &cell, bulk(mu0), mu0).empty()) return mu0;
+  if (!make_uniaxial_cell(groups, p.spec.mapping, 0.01, &cell, bulk(mu0), mu0,
+                          p.spec.shear_stiffening)
+           .empty())
+    return mu0;
   // The softest wave's modulus at that strain: smooth and increasing in mu. Each solve of the
   // lateral stretches starts from the last one's.
   auto wave = [&](double mu) {
@@ -289,7 +295,8 @@ std::vector<double> Evaluator::surrogate(const std::vector<ConicalCard>& cards) 
   ++surrogate_evaluations;
   const std::vector<SpringGroupSpec> g = groups(cards);
   const ElementModuli em = element_moduli(g, nu, &shear_hint_, &stretch_hint_);
-  return cell_surrogate(g, p_.spec.mapping, p_.geo, p_.target.grid, em.bulk, em.shear);
+  return cell_surrogate(g, p_.spec.mapping, p_.geo, p_.target.grid, em.bulk, em.shear,
+                        p_.spec.shear_stiffening);
 }
 
 FullRun Evaluator::full_at(const std::vector<ConicalCard>& cards, double ratio) const {

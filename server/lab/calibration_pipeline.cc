@@ -128,6 +128,7 @@ void describe(Evaluator& ev, const std::vector<CardShape>& sh, FitResult* r) {
   r->bulk_modulus = em.bulk;
   r->spread_modulus = em.spread;
   r->shear_modulus = em.shear;
+  r->shear_stiffening = ev.problem().spec.shear_stiffening;
   r->poisson = body_poisson(r->moduli, r->bulk_modulus, r->shear_modulus);
   r->surrogate = ev.surrogate(r->cards);
   r->surrogate_error = ev.error(r->surrogate);

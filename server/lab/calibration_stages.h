@@ -62,7 +62,8 @@ struct BodyGeometry {
 // The cell surrogate's force (N) at plate travel `grid` (m) of a body of `geo` with `groups`.
 std::vector<double> cell_surrogate(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
                                    const BodyGeometry& geo, const std::vector<double>& grid,
-                                   double bulk_modulus, double shear_modulus);
+                                   double bulk_modulus, double shear_modulus,
+                                   double shear_stiffening);
 std::vector<ConicalCard> cards_of(const ConicalCard& base, const std::vector<CardShape>& shapes);
 
 // --- Stage 1, prepare_body: the spec and options checked, the body built once.

@@ -271,8 +271,8 @@ CompressionEquilibria compression_equilibria(const Model& model, double to_strai
 }
 
 std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
-                               double side, Model* cell, double bulk_modulus,
-                               double shear_modulus) {
+                               double side, Model* cell, double bulk_modulus, double shear_modulus,
+                               double shear_stiffening) {
   BodySpec spec;
   spec.mesh = make_box_lattice(Vec3(side, side, side), {1, 1, 1});
   spec.density = 1000;
@@ -286,6 +286,7 @@ std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mappi
   spec.mapping = mapping;
   spec.bulk_modulus = bulk_modulus;
   spec.shear_modulus = shear_modulus;
+  spec.shear_stiffening = shear_stiffening;
   SolverOptions& o = spec.options;
   o.integrator = Integrator::kImplicitEuler;
   o.dt = 1.0;  // long step: each implicit step is a Newton step on the static equilibrium

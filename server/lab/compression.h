@@ -127,12 +127,13 @@ struct CompressionEquilibria {
 CompressionEquilibria compression_equilibria(const Model& model, double to_strain, int samples);
 
 // The lattice cell of `groups` (a 1 x 1 x 1 hexahedron of side `side`, all 28 springs, the
-// given mapping, volume and shear stiffness bulk_modulus and shear_modulus in Pa; a uniform
+// given mapping, volume and shear stiffness bulk_modulus and shear_modulus in Pa, the shear
+// term's stiffening shear_stiffening (dimensionless, core/volume.h); a uniform
 // deformation leaves the Gauss-point spread at zero), its base held along z, one corner pinned
 // against rigid motion. Returns the build error, empty on success.
 std::string make_uniaxial_cell(const std::vector<SpringGroupSpec>& groups, Mapping mapping,
                                double side, Model* cell, double bulk_modulus = 0,
-                               double shear_modulus = 0);
+                               double shear_modulus = 0, double shear_stiffening = 0);
 
 // Homogenised engineering stress (Pa, compression positive, over the rest cross-section) of the
 // cell at each compressive engineering strain in `strains` (ascending, each in [0, 1)): the cell

@@ -89,7 +89,8 @@ SpringCard SoftHooke() {
 
 // A box lattice (or its tetrahedra) with volume stiffness (and Gauss-point spread stiffness for
 // hexahedra), nothing fixed.
-Model VolumeBody(bool tets, double kappa, double spread = 0, double shear = 0) {
+Model VolumeBody(bool tets, double kappa, double spread = 0, double shear = 0,
+                 double stiffening = 0) {
   BodySpec b;
   b.mesh = make_box_lattice(Vec3(0.02, 0.03, 0.02), {2, 3, 2});
   if (tets) {
@@ -105,15 +106,18 @@ Model VolumeBody(bool tets, double kappa, double spread = 0, double shear = 0) {
   b.bulk_modulus = kappa;
   b.spread_modulus = tets ? 0 : spread;
   b.shear_modulus = shear;
+  b.shear_stiffening = stiffening;
   Model m;
   EXPECT_EQ(build_model(b, &m), "");
   return m;
 }
 
 TEST(VolumeTest, ForcesAreMinusTheGradientOfTheStoredEnergy) {
-  for (int kind = 0; kind < 5; ++kind) {
-    const bool tets = kind == 1 || kind == 4;
-    const Model m = VolumeBody(tets, 2e5, kind == 2 ? 1.5e5 : 0, kind >= 3 ? 4e4 : 0);
+  // Kinds 5 and 6: the shear term stiffened (Yeoh), hexahedra and tetrahedra.
+  for (int kind = 0; kind < 7; ++kind) {
+    const bool tets = kind == 1 || kind == 4 || kind == 6;
+    const Model m =
+        VolumeBody(tets, 2e5, kind == 2 ? 1.5e5 : 0, kind >= 3 ? 4e4 : 0, kind >= 5 ? 0.7 : 0);
     State s = make_state(m);
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> u(-1e-3, 1e-3);
@@ -215,6 +219,30 @@ TEST(VolumeTest, SimpleShearCarriesTheShearModulusAtAnyAngle) {
         if (m.rest[i].z() > H - 1e-9) fx += ws.force[i].x() - ws0.force[i].x();
       const double area = 0.02 * 0.03;
       EXPECT_NEAR(fx / (-mu * gamma * area), 1.0, 1e-9)
+          << (tets ? "tets" : "hexes") << ", gamma " << gamma;
+    }
+  }
+}
+
+TEST(VolumeTest, StiffenedShearFollowsYeohsSimpleShearStress) {
+  // Simple shear F = I + gamma e_x e_z^T: J = 1, I1b - 3 = gamma^2, so Yeoh's energy
+  // (mu / 2)(gamma^2 + beta gamma^4) gives P_xz = mu gamma (1 + 2 beta gamma^2) exactly.
+  const double mu = 3e4, beta = 0.8, H = 0.02;
+  for (bool tets : {false, true}) {
+    Model m = VolumeBody(tets, 0, 0, mu, beta);
+    Model springs_only = m;
+    springs_only.shear_modulus = 0;
+    for (double gamma : {1e-3, 0.3, 0.8}) {
+      State st = make_state(m);
+      for (int i = 0; i < m.num_nodes(); ++i) st.x[i].x() += gamma * m.rest[i].z();
+      Workspace ws(m), ws0(springs_only);
+      compute_forces(m, st, ws);
+      compute_forces(springs_only, st, ws0);
+      double fx = 0;
+      for (int i = 0; i < m.num_nodes(); ++i)
+        if (m.rest[i].z() > H - 1e-9) fx += ws.force[i].x() - ws0.force[i].x();
+      const double area = 0.02 * 0.03;
+      EXPECT_NEAR(fx / (-mu * gamma * (1 + 2 * beta * gamma * gamma) * area), 1.0, 1e-9)
           << (tets ? "tets" : "hexes") << ", gamma " << gamma;
     }
   }

@@ -85,6 +85,15 @@ TEST(SceneTest, WrongScenesAreRefusedWithLineAndReason) {
     }
   const std::string lone = with("density: 1000", "density: 1000 spread_modulus: 5");
   EXPECT_NE(lone.find("spread_modulus needs bulk_modulus > 0"), std::string::npos) << lone;
+  // The shear term's stiffening: >= 0 and finite, at its line, and only with a shear term.
+  for (const char* k : {"-0.5", "nan", "inf"}) {
+    const std::string e = with(
+        "density: 1000", "density: 1000 shear_modulus: 100\nshear_stiffening: " + std::string(k));
+    EXPECT_NE(e.find("s.pbtxt:5:1: shear_stiffening must be >= 0"), std::string::npos) << e;
+  }
+  const std::string stiff = with("density: 1000", "density: 1000\nshear_stiffening: 2");
+  EXPECT_NE(stiff.find("s.pbtxt:5:1: shear_stiffening needs shear_modulus > 0"), std::string::npos)
+      << stiff;
   // Invalid card at its group's line, naming the parameter.
   const std::string card = with("d: 1e-3", "d: 0");
   EXPECT_NE(card.find("s.pbtxt:5:1: group 0 (\"g\"): d must be > 0"), std::string::npos) << card;

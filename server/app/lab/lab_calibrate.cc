@@ -188,6 +188,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
       material.bulk_modulus = r.bulk_modulus;
       material.spread_modulus = r.spread_modulus;
       material.shear_modulus = r.shear_modulus;
+      material.shear_stiffening = r.shear_stiffening;
       for (const auto& g : r.groups)
         if (g.card.law == LawKind::kConical) material.groups.push_back(g);
       if (std::string e = io::write_text_file(o->out, head + io::material_text(material));
@@ -201,6 +202,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
         fitted.spec.bulk_modulus = r.bulk_modulus;
         fitted.spec.spread_modulus = r.spread_modulus;
         fitted.spec.shear_modulus = r.shear_modulus;
+        fitted.spec.shear_stiffening = r.shear_stiffening;
         const std::string dir = std::filesystem::path(o->scene_out).parent_path().string();
         if (std::string e = io::write_text_file(
                 o->scene_out, head + io::scene_text(fitted, dir.empty() ? "." : dir));

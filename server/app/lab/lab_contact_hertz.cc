@@ -165,6 +165,7 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
       b.spec.bulk_modulus = sc.spec.bulk_modulus;
       b.spec.spread_modulus = sc.spec.spread_modulus;
       b.spec.shear_modulus = sc.spec.shear_modulus;
+      b.spec.shear_stiffening = sc.spec.shear_stiffening;
       FixedSelector base;
       base.kind = FixedSelector::Kind::kPlane;
       b.spec.fixed = {base};
@@ -207,7 +208,7 @@ int run_hertz(const Opts& o, const std::vector<Scene>& scenes) {
     {
       Model cell;
       if (make_uniaxial_cell(b.spec.groups, b.spec.mapping, b.spacing, &cell, b.spec.bulk_modulus,
-                             b.spec.shear_modulus)
+                             b.spec.shear_modulus, b.spec.shear_stiffening)
               .empty())
         E_cell = cell_stress_curve(cell, {o.compression_strain}).front() / o.compression_strain;
     }

@@ -171,8 +171,9 @@ void register_fem_reference(CLI::App& app, Runner* run) {
         source = std::to_string(o->fit_data.size()) + " measured curve(s)";
       } else {
         Model cell;
-        if (std::string e = make_uniaxial_cell(spec.groups, spec.mapping, 0.01, &cell,
-                                               spec.bulk_modulus, spec.shear_modulus);
+        if (std::string e =
+                make_uniaxial_cell(spec.groups, spec.mapping, 0.01, &cell, spec.bulk_modulus,
+                                   spec.shear_modulus, spec.shear_stiffening);
             !e.empty()) {
           std::fprintf(stderr, "%s: %s: %s\n", me, o->scene.c_str(), e.c_str());
           return 2;

@@ -337,6 +337,7 @@ void register_library(CLI::App& app, Runner* run) {
         material.bulk_modulus = r.bulk_modulus;
         material.spread_modulus = r.spread_modulus;
         material.shear_modulus = r.shear_modulus;
+        material.shear_stiffening = r.shear_stiffening;
         for (const auto& grp : r.groups)
           if (grp.card.law == LawKind::kConical) material.groups.push_back(grp);
         const std::string text = head + io::material_text(material);
