@@ -28,7 +28,7 @@ void shear_element(const Model& m, const std::vector<Vec3>& xs, const std::array
     isochoric_yeoh(F.data(), m.shear_modulus, m.shear_stiffening, P.data(), &c);
     P *= *v0;
     for (int a = 0; a < N; ++a) f[a].noalias() -= P * b[a];
-    *coef++ = *v0++ * c;
+    *coef++ = *v0++ * m.shear_modulus * c;
   }
   for (int a = 0; a < N; ++a) force[nodes[a]] += f[a];
 }

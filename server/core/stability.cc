@@ -119,19 +119,55 @@ double acoustic_min(const Mat9& A, const Vec3& n, Vec3* polarisation) {
   return es.eigenvalues()(0);
 }
 
+// A transformed by the orthogonal map R: A'_iAjB = R_ip R_Aq R_jr R_Bs A_pqrs (R a signed
+// permutation here, so each entry is one entry of A with a sign).
+Mat9 transformed(const Mat9& A, const Mat3& R) {
+  Mat9 out = Mat9::Zero();
+  int p[3];
+  double s[3];
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k)
+      if (R(i, k) != 0) {
+        p[i] = k;
+        s[i] = R(i, k);
+      }
+  for (int i = 0; i < 3; ++i)
+    for (int a = 0; a < 3; ++a)
+      for (int j = 0; j < 3; ++j)
+        for (int b = 0; b < 3; ++b)
+          out(idx(i, a), idx(j, b)) =
+              s[i] * s[a] * s[j] * s[b] * A(idx(p[i], p[a]), idx(p[j], p[b]));
+  return out;
+}
+
+// A unchanged by the square prism's symmetries about z: x -> -x, y -> -y, x <-> y.
+bool square_prism_symmetric(const Mat9& A) {
+  const double tol = 1e-12 * A.norm();
+  Mat3 mx = Mat3::Identity(), my = Mat3::Identity(), swap = Mat3::Zero();
+  mx(0, 0) = -1;
+  my(1, 1) = -1;
+  swap(0, 1) = swap(1, 0) = swap(2, 2) = 1;
+  for (const Mat3& R : {mx, my, swap})
+    if (!((transformed(A, R) - A).norm() <= tol)) return false;
+  return true;
+}
+
 }  // namespace
 
 SoftestWave softest_wave(const Mat9& A, int directions) {
   // Directions on a hemisphere (n and -n give the same Q): a Fibonacci lattice, then a pattern
-  // search about the best one in shrinking steps.
+  // search about the best one in shrinking steps. With the square prism's symmetry only the
+  // lattice's directions with 0 <= y <= x are evaluated.
   const int kDirections = std::max(1, directions);
   const double golden = M_PI * (3 - std::sqrt(5.0));
+  const bool eighth = square_prism_symmetric(A);
   SoftestWave best;
   best.modulus = std::numeric_limits<double>::infinity();
   for (int q = 0; q < kDirections; ++q) {
     const double z = 1 - (q + 0.5) / kDirections;  // (0, 1]
     const double r = std::sqrt(std::max(0.0, 1 - z * z)), phi = golden * q;
     const Vec3 n(r * std::cos(phi), r * std::sin(phi), z);
+    if (eighth && !(n.y() >= 0 && n.y() <= n.x()) && q > 0) continue;
     const double v = acoustic_min(A, n, nullptr);
     if (v < best.modulus) {
       best.modulus = v;

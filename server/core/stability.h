@@ -44,7 +44,10 @@ HomogenisedState homogenised_state(const Model& model, const Mat3& F);
 
 // The smallest eigenvalue (Pa) of the acoustic tensor Q(n) over unit n, and the n and
 // polarisation (unit) where it is reached: searched over `directions` directions of a
-// hemisphere, then refined by a pattern search.
+// hemisphere, then refined by a pattern search. A tangent with the symmetry of a square prism
+// about z (unchanged by x -> -x, y -> -y and x <-> y to 1e-12 of its size: a cubic lattice
+// cell compressed along an axis) is scanned over the eighth of those directions with
+// 0 <= y <= x, whose images cover the rest.
 struct SoftestWave {
   double modulus = 0;
   Vec3 normal = Vec3::UnitZ();

@@ -112,13 +112,14 @@ double isochoric_yeoh(const double* f, double mu, double beta, double* p, double
   const double J = F.determinant();
   if (!(J > 0)) {
     P.setZero();
-    *coef = mu;
+    *coef = 1;
     return 0;
   }
   const double c = std::cbrt(J), m = 1 / (c * c), i1 = F.squaredNorm();
   const double d = m * i1 - 3;                // I1b - 3 >= 0
-  const double mt = mu * (1 + 2 * beta * d);  // 2 dW/dI1b
-  *coef = mt * m;
+  const double g = 1 + 2 * beta * d;  // 2 dW/dI1b / mu
+  *coef = g * m;
+  const double mt = mu * g;
   // F^-T = cofactor(F) / J.
   Eigen::Matrix3d cof;
   cof.col(0) = F.col(1).cross(F.col(2));

@@ -69,8 +69,9 @@ bool hex_shape_gradients(const Vec3* x, Vec3* b, double* v0);
 
 // The shear term's energy density W / v0 (above) at deformation gradient F (3 x 3, column-major
 // in f[9]) returned, its first Piola stress into p[9] and the Laplacian's coefficient per rest
-// volume, mu (1 + 2 beta (I1b - 3)) J^(-2/3) in Pa, into *coef. F with det <= 0: energy 0,
-// stress 0, *coef mu (the hard stop keeps springs from inverting).
+// volume over mu, (1 + 2 beta (I1b - 3)) J^(-2/3) (dimensionless), into *coef. F with det <= 0:
+// energy 0, stress 0, *coef 1 (the hard stop keeps springs from inverting). With beta = 0 every
+// output is the neo-Hookean term's, bit for bit.
 double isochoric_yeoh(const double* f, double mu, double beta, double* p, double* coef);
 
 }  // namespace conica

@@ -239,7 +239,11 @@ TEST(CalibrationFullBodyTest, ShearStiffPhantomFollowsEcoflexWithinTwoPercentWit
   EXPECT_LT(e, 0.02);
   // Within the fit's bound (layers measured about the rest centroid's axis) and, about the
   // cylinder's own axis, every layer within 0.6 mm of the others (0.50 mm here; the runs the
-  // issue's grid rejected spread by 3 % of the radius, 0.76 mm, and more).
+  // issue's grid rejected spread by 3 % of the radius, 0.76 mm, and more). This card is past
+  // its quasi-static buckling onset at 50 % (42-44 % on the square prism, docs/materials.md), so
+  // the spread at the end depends on the perturbation that seeds the sway: a last-bit change in
+  // the shear term's implicit coefficient alone gave 0.92 mm. The library's cards (next test)
+  // are checked for the onset instead.
   EXPECT_LE(st.layer_spread, FitOptions{}.max_layer_spread * st.half_width);
   EXPECT_LT(LayerRadiusSpread(m, st.positions), 0.6e-3) << "even layers";
 }
