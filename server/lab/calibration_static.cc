@@ -133,12 +133,26 @@ void static_fit(Evaluator& ev, FitResult* r) {
     for (int i = 0; i < o.poisson_grid; ++i)
       nus.push_back(o.poisson_max - (o.poisson_max - o.poisson_min) * i / (o.poisson_grid - 1));
   }
-  std::vector<SurrogateOptimum> optima;
-  for (double nu : nus) {
-    ev.nu = nu;
-    optima.push_back(surrogate_at(ev));
-    say(o, "surrogate at Poisson " + fmt(nu, 3) + ": average relative error " +
-               fmt(100 * optima.back().error, 4) + " %: " + shapes_text(optima.back().shapes));
+  // One surrogate search per Poisson ratio, in parallel: each on its own evaluator (its own root
+  // hints) and a copy of the problem whose progress lines are kept and said in the grid's order,
+  // so the result and the log do not depend on the thread count.
+  const int n = static_cast<int>(nus.size());
+  std::vector<SurrogateOptimum> optima(n);
+  std::vector<std::vector<std::string>> lines(n);
+  std::vector<int> evaluations(n, 0);
+  parallel_for(n, o.threads, [&](int i) {
+    FitOptions oi = o;
+    oi.progress = [&lines, i](const std::string& line) { lines[i].push_back(line); };
+    const Problem q{p.spec, oi, p.cards, p.base, p.geo, p.target, p.volume, p.smin};
+    Evaluator e(q, nus[i]);
+    optima[i] = surrogate_at(e);
+    evaluations[i] = e.surrogate_evaluations;
+  });
+  for (int i = 0; i < n; ++i) {
+    for (const std::string& line : lines[i]) say(o, line);
+    ev.surrogate_evaluations += evaluations[i];
+    say(o, "surrogate at Poisson " + fmt(nus[i], 3) + ": average relative error " +
+               fmt(100 * optima[i].error, 4) + " %: " + shapes_text(optima[i].shapes));
   }
   std::stable_sort(
       optima.begin(), optima.end(),
