@@ -35,6 +35,14 @@ struct FemMesh {
 // set to whether it was. Precondition: refine >= 1, the mesh has hexahedra.
 FemMesh make_c3d20_mesh(const Mesh& mesh, int refine, bool quarter);
 
+// A box lattice (every cell of a tensor grid present, axis-aligned) with its grid planes thinned
+// out away from a punch: the planes within `keep` of the vertical axis through (axis.x, axis.y)
+// and of the top face are kept; beyond, each cell is at most twice as wide as its neighbour
+// nearer the punch, the outer faces kept. The same box, fewer cells: for a continuum reference
+// whose solve would otherwise be too slow. Returns the error (not a full box lattice), empty on
+// success.
+std::string coarsen_box_lattice(const Mesh& mesh, const Vec3& axis, double keep, Mesh* out);
+
 struct YeohLaw {
   double c10 = 0, c20 = 0, c30 = 0;  // Pa
   double d1 = 0;                     // 1/Pa
@@ -55,13 +63,17 @@ struct FemCase {
   bool bonded = false;            // compress: both plates bonded; indent: base clamped
   double punch_radius = 0;        // m, indent
   bool punch_bonded = false;      // indent: punch nodes held in x and y
-  int increments = 20;            // at least this many (fixed largest increment 1 / increments)
+  int increments = 20;            // at least this many (largest increment 1 / increments)
   bool full_integration = false;  // C3D20 (27 Gauss points) instead of C3D20R (8)
 };
 
 // The CalculiX input deck of `c` on `mesh` with `law`. Nodes of the driven set: the top face
-// (compress) or the top face within the punch radius of the centre axis (indent); the base is the
-// lowest face. Returns the error (no node under the punch), empty on success.
+// (compress), or all 8 nodes of every top-face element face whose centre lies within the punch
+// radius of the centre axis (indent: whole quadratic faces, so no face is driven at some of its
+// nodes only); the base is the lowest face. Increments: compress starts at and is capped by
+// 1 / increments; indent starts at a quarter of that (the first increment carries the punch's
+// edge singularity from an unstrained body) and grows automatically up to it. Returns the
+// error (no face under the punch), empty on success.
 std::string write_calculix_deck(const FemMesh& mesh, const YeohLaw& law, const FemCase& c,
                                 const std::string& title, std::string* deck,
                                 int* driven_nodes = nullptr);

@@ -46,6 +46,41 @@ TEST(FemReferenceTest, QuadraticMeshSharesNodesAndEdges) {
       make_c3d20_mesh(make_box_lattice(Vec3(0.03, 0.03, 0.01), {3, 3, 1}), 1, true).quarter);
 }
 
+// The punch block of configs/validation (60 x 60 x 30 mm, 2.5 mm cells): thinned away from the
+// punch, the same box; the punch drives whole quadratic faces (every node of a top face whose
+// centre lies within the radius, none of a face partly under it).
+TEST(FemReferenceTest, PunchMeshIsGradedAndDrivesWholeFaces) {
+  const Mesh box = make_box_lattice(Vec3(0.06, 0.06, 0.03), {24, 24, 12});
+  Mesh graded;
+  ASSERT_EQ(coarsen_box_lattice(box, Vec3(0.03, 0.03, 0.015), 0.01, &graded), "");
+  // Planes kept: x, y 10 mm each side at 2.5 mm, then 5, 10, 5 mm; z 10 mm at 2.5, then 5, 10, 5.
+  EXPECT_EQ(graded.hexahedra.size(), 14u * 14u * 7u);
+  double volume = 0;
+  for (const auto& h : graded.hexahedra) volume += (graded.nodes[h[6]] - graded.nodes[h[0]]).prod();
+  EXPECT_NEAR(volume, 0.06 * 0.06 * 0.03, 1e-15);
+  Mesh holed = box;
+  holed.hexahedra.pop_back();
+  EXPECT_NE(coarsen_box_lattice(holed, Vec3(0.03, 0.03, 0.015), 0.01, &graded), "");
+
+  ASSERT_EQ(coarsen_box_lattice(box, Vec3(0.03, 0.03, 0.015), 0.01, &graded), "");
+  const FemMesh mesh = make_c3d20_mesh(graded, 1, true);
+  ASSERT_TRUE(mesh.quarter);
+  FemCase c;
+  c.test = FemCase::Test::kIndent;
+  c.travel = 0.006;
+  c.punch_radius = 0.005;
+  std::string deck;
+  int driven = 0;
+  ASSERT_EQ(write_calculix_deck(mesh, YeohLaw{16000, -2000, 1000, 6e-6}, c, "t", &deck, &driven),
+            "");
+  // Three faces of the quarter (centres at 1.77, 3.95, 3.95 mm from the axis): 3 x 8 nodes less
+  // the 6 shared. Not the corner node at (5, 0), 5 mm from the axis but on a face partly outside.
+  EXPECT_EQ(driven, 18);
+  // The first increment a quarter of the largest.
+  EXPECT_NE(deck.find("*STATIC\n0.0125, 1., "), std::string::npos)
+      << deck.substr(deck.find("*STEP"));
+}
+
 TEST(FemReferenceTest, YeohFitRecoversItsLawAndTheSmallStrainModulus) {
   YeohLaw law{12000, -800, 900, 0};
   std::vector<double> e, p;

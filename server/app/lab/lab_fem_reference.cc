@@ -55,6 +55,7 @@ void register_fem_reference(CLI::App& app, Runner* run) {
     std::vector<std::string> fit_data;
     std::vector<double> specimen_mm = {50, 30};
     double to_strain = 0.3, depth_mm = 0, radius_mm = 0, poisson = -2, fit_max_strain = 0.5;
+    double fine_mm = -1;
     bool bonded = false, punch_bonded = false, full = false, no_run = false, c3d20 = false;
     int refine = 2, increments = 20;
   };
@@ -70,10 +71,14 @@ void register_fem_reference(CLI::App& app, Runner* run) {
   cmd->add_option("--punch-radius", o->radius_mm, "indent: punch radius, mm");
   cmd->add_option("--depth", o->depth_mm, "indent: final punch travel, mm");
   cmd->add_flag("--punch-bonded", o->punch_bonded, "indent: the punch holds its nodes in x, y");
-  cmd->add_option("--refine", o->refine, "each scene hexahedron split into N^3 C3D20R elements")
+  cmd->add_option("--refine", o->refine, "each scene hexahedron split into N^3 quadratic elements")
       ->capture_default_str();
   cmd->add_flag("--c3d20", o->c3d20,
-                "fully integrated C3D20 elements (default C3D20R; a punch's edge needs C3D20)");
+                "fully integrated C3D20 elements (default: C3D20R for compress, C3D20 for indent)");
+  cmd->add_option("--fine-mm", o->fine_mm,
+                  "indent on a box lattice: the lattice kept within this distance of the punch "
+                  "axis and of the top face, cells up to twice as wide per cell beyond "
+                  "(default: twice the punch radius; 0: the whole lattice)");
   cmd->add_flag("--full", o->full, "model the whole body (default: a quarter when symmetric)");
   cmd->add_option("--increments", o->increments, "at least this many load increments")
       ->capture_default_str();
@@ -143,7 +148,7 @@ void register_fem_reference(CLI::App& app, Runner* run) {
       c.travel =
           c.test == FemCase::Test::kCompress ? o->to_strain * (zhi - zlo) : o->depth_mm * 1e-3;
       c.increments = o->increments;
-      c.full_integration = o->c3d20;
+      c.full_integration = o->c3d20 || c.test == FemCase::Test::kIndent;
 
       // The law, fitted to the same data as the card.
       const double nu = o->poisson > -1 ? o->poisson
@@ -200,7 +205,28 @@ void register_fem_reference(CLI::App& app, Runner* run) {
                    me, source.c_str(), o->fit_max_strain, law.c10, law.c20, law.c30, law.d1, nu,
                    100 * err / std::max(1, n));
 
-      const FemMesh mesh = make_c3d20_mesh(spec.mesh, o->refine, !o->full);
+      Mesh body = spec.mesh;
+      std::string graded;
+      const double fine = o->fine_mm >= 0 ? o->fine_mm * 1e-3 : 2 * c.punch_radius;
+      if (c.test == FemCase::Test::kIndent && fine > 0) {
+        Vec3 lo = body.nodes[0], hi = lo;
+        for (const Vec3& x : body.nodes) {
+          lo = lo.cwiseMin(x);
+          hi = hi.cwiseMax(x);
+        }
+        if (std::string e = coarsen_box_lattice(spec.mesh, 0.5 * (lo + hi), fine, &body);
+            !e.empty()) {
+          std::fprintf(stderr, "%s: %s: %s (--fine-mm 0 meshes the whole lattice)\n", me,
+                       o->scene.c_str(), e.c_str());
+          return 2;
+        }
+        char note[160];
+        std::snprintf(note, sizeof note,
+                      "; the lattice within %.3g mm of the punch, coarser beyond: %zu of %zu cells",
+                      fine * 1e3, body.hexahedra.size(), spec.mesh.hexahedra.size());
+        graded = note;
+      }
+      const FemMesh mesh = make_c3d20_mesh(body, o->refine, !o->full);
       std::string deck;
       int driven = 0;
       const std::string title =
@@ -220,10 +246,11 @@ void register_fem_reference(CLI::App& app, Runner* run) {
           return 1;
         }
       }
-      std::fprintf(stderr, "%s: wrote %s: %zu %s elements, %zu nodes (%s), %d driven nodes\n", me,
-                   inp.c_str(), mesh.elements.size(), o->c3d20 ? "C3D20" : "C3D20R",
+      std::fprintf(stderr, "%s: wrote %s: %zu %s elements, %zu nodes (%s%s), %d driven nodes\n", me,
+                   inp.c_str(), mesh.elements.size(), c.full_integration ? "C3D20" : "C3D20R",
                    mesh.nodes.size(),
-                   mesh.quarter ? "a quarter, symmetry planes x and y" : "the whole body", driven);
+                   mesh.quarter ? "a quarter, symmetry planes x and y" : "the whole body",
+                   graded.c_str(), driven);
       if (o->no_run) return 0;
       if (std::system("command -v ccx >/dev/null 2>&1") != 0) {
         std::fprintf(stderr,
