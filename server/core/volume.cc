@@ -116,7 +116,7 @@ double isochoric_yeoh(const double* f, double mu, double beta, double* p, double
     return 0;
   }
   const double c = std::cbrt(J), m = 1 / (c * c), i1 = F.squaredNorm();
-  const double d = m * i1 - 3;                // I1b - 3 >= 0
+  const double d = m * i1 - 3;        // I1b - 3 >= 0
   const double g = 1 + 2 * beta * d;  // 2 dW/dI1b / mu
   *coef = g * m;
   const double mt = mu * g;
