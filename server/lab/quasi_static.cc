@@ -150,7 +150,7 @@ ReactionFn plate_reaction() {
 }
 
 std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, bool base_bonded,
-                           std::vector<int>* punch) {
+                           std::vector<int>* punch, double* area) {
   const auto& nodes = spec->mesh.nodes;
   if (nodes.empty()) return "the body has no nodes";
   if (!(radius > 0) || !std::isfinite(radius)) return "punch radius must be > 0 m";
@@ -168,13 +168,43 @@ std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, boo
       thi = thi.cwiseMax(x);
     }
   const Vec3 c = 0.5 * (tlo + thi);
+  // Whole element faces on the top plane whose centre lies within the radius: the punch drives
+  // every node of each, as the continuum reference drives its quadratic faces (fem_reference.h).
+  std::vector<char> under(nodes.size(), 0);
+  double covered = 0;
+  auto face = [&](const int* f, int n) {
+    Vec3 m = Vec3::Zero();
+    for (int a = 0; a < n; ++a) {
+      if (nodes[f[a]].z() < hi.z() - tol) return;
+      m += nodes[f[a]];
+    }
+    m /= n;
+    if (std::hypot(m.x() - c.x(), m.y() - c.y()) > radius + tol) return;
+    const Vec3 &p0 = nodes[f[0]], &p1 = nodes[f[1]], &p2 = nodes[f[2]];
+    covered += n == 3 ? 0.5 * (p1 - p0).cross(p2 - p0).norm()
+                      : 0.5 * (p2 - p0).cross(nodes[f[3]] - p1).norm();
+    for (int a = 0; a < n; ++a) under[f[a]] = 1;
+  };
+  static constexpr int kHexFaces[6][4] = {{0, 1, 2, 3}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                                          {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
+  static constexpr int kTetFaces[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
+  for (const auto& h : spec->mesh.hexahedra)
+    for (const auto& f : kHexFaces) {
+      const int q[4] = {h[f[0]], h[f[1]], h[f[2]], h[f[3]]};
+      face(q, 4);
+    }
+  for (const auto& t : spec->mesh.tetrahedra)
+    for (const auto& f : kTetFaces) {
+      const int q[3] = {t[f[0]], t[f[1]], t[f[2]]};
+      face(q, 3);
+    }
   punch->clear();
-  for (int i = 0; i < static_cast<int>(nodes.size()); ++i) {
-    const Vec3& x = nodes[i];
-    if (x.z() >= hi.z() - tol && std::hypot(x.x() - c.x(), x.y() - c.y()) <= radius + tol)
-      punch->push_back(i);
-  }
-  if (punch->empty()) return "no node of the top face lies under the punch (radius too small)";
+  for (int i = 0; i < static_cast<int>(nodes.size()); ++i)
+    if (under[i]) punch->push_back(i);
+  if (area) *area = covered;
+  if (punch->empty())
+    return "no face of the top lies under the punch (its centre farther than the radius from the "
+           "axis: radius smaller than half a cell?)";
   FixedSelector p;
   p.kind = FixedSelector::Kind::kNodes;
   p.nodes = *punch;

@@ -98,13 +98,16 @@ LoadFn plate_load(const Model& model);
 ReactionFn plate_reaction();
 
 // A flat rigid punch of `radius` (m) on the body's top face (highest z), centred on the face's
-// bounding box and pressing along -z: the top nodes within the radius of its axis (at rest) are
-// driven in z (punch_bonded: held in x and y too, no slip). The base (lowest z) is clamped
-// (base_bonded) or held in z only, with a node near its centre held in x and y and one beside it
-// in y against rigid motion. Adds the selectors to `spec` and the punch nodes to *punch.
-// Returns what is wrong (no node under the punch), empty on success.
+// bounding box and pressing along -z: every node of each element face on the top plane whose
+// centre lies within the radius of its axis (at rest) is driven in z (punch_bonded: held in x and
+// y too, no slip): whole faces, as `fem-reference` drives its quadratic faces, so both press the
+// same area (on a lattice coarse against the radius, a smaller one than the disc; *area, m^2,
+// when given). The base (lowest z) is clamped (base_bonded) or held in z only, with a node near
+// its centre held in x and y and one beside it in y against rigid motion. Adds the selectors to
+// `spec` and the punch nodes to *punch. Returns what is wrong (no face under the punch), empty
+// on success.
 std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, bool base_bonded,
-                           std::vector<int>* punch);
+                           std::vector<int>* punch, double* area = nullptr);
 
 // The punch's load (travel u down) and reaction (N, upward force of the body on the punch).
 LoadFn punch_load(const std::vector<int>& punch);

@@ -147,7 +147,7 @@ TEST(QuasiStaticTest, FlatPunchMatchesTheLinearEquilibrium) {
     BodySpec spec = Block(4, 2, 0.04, 0.02);
     std::vector<int> punch;
     ASSERT_EQ(add_flat_punch(&spec, 0.0101, punch_bonded, true, &punch), "");
-    ASSERT_EQ(punch.size(), 5u);  // the centre and its four neighbours at 10 mm
+    ASSERT_EQ(punch.size(), 9u);  // the four top faces about the centre (theirs at 7.1 mm)
     Model m;
     ASSERT_EQ(build_model(spec, &m), "");
     const double depth = 1e-6;
@@ -163,14 +163,40 @@ TEST(QuasiStaticTest, FlatPunchMatchesTheLinearEquilibrium) {
   }
 }
 
-TEST(QuasiStaticTest, PunchNeedsANodeUnderIt) {
-  BodySpec spec = Block(1, 1, 0.02, 0.01);  // top nodes at the corners only, 14 mm from the axis
+TEST(QuasiStaticTest, PunchDrivesWholeFacesWhoseCentreItCovers) {
+  // 2 x 2 top faces of 10 mm, their centres 7.07 mm from the axis: a 1 mm punch covers none.
+  BodySpec spec = Block(2, 1, 0.02, 0.01);
   std::vector<int> punch;
-  EXPECT_EQ(add_flat_punch(&spec, 1e-3, false, true, &punch).find("no node"), 0u);
-  // The top face's centre node is under any punch of at least a hair's radius.
+  EXPECT_EQ(add_flat_punch(&spec, 1e-3, false, true, &punch).find("no face"), 0u);
+  // 7.1 mm covers all four: their nine nodes, 400 mm^2 (the whole top, a disc of 11.3 mm).
   BodySpec spec2 = Block(2, 1, 0.02, 0.01);
-  EXPECT_EQ(add_flat_punch(&spec2, 1e-3, false, true, &punch), "");
-  EXPECT_EQ(punch.size(), 1u);
+  double area = 0;
+  ASSERT_EQ(add_flat_punch(&spec2, 7.1e-3, false, true, &punch, &area), "");
+  EXPECT_EQ(punch.size(), 9u);
+  EXPECT_NEAR(area, 4e-4, 1e-12);
+  // One face centred on the axis is under any punch, however small.
+  BodySpec spec3 = Block(1, 1, 0.02, 0.01);
+  ASSERT_EQ(add_flat_punch(&spec3, 1e-4, false, true, &punch, &area), "");
+  EXPECT_EQ(punch.size(), 4u);
+  EXPECT_NEAR(area, 4e-4, 1e-12);
+  // Tetrahedra: the same 20 mm square top split into triangles, each face judged by its centroid.
+  BodySpec tet = Block(1, 1, 0.02, 0.01);
+  std::vector<std::array<int, 4>> tets;
+  for (const auto& h : tet.mesh.hexahedra) {
+    // The six-tetrahedron split of a cube about its 0-6 diagonal.
+    static constexpr int kSplit[6][4] = {{0, 1, 2, 6}, {0, 2, 3, 6}, {0, 3, 7, 6},
+                                         {0, 7, 4, 6}, {0, 4, 5, 6}, {0, 5, 1, 6}};
+    for (const auto& t : kSplit) tets.push_back({h[t[0]], h[t[1]], h[t[2]], h[t[3]]});
+  }
+  tet.mesh.hexahedra.clear();
+  tet.mesh.tetrahedra = tets;
+  // Top triangles (4, 5, 6) and (4, 6, 7): centroids 4.7 mm from the axis.
+  EXPECT_EQ(add_flat_punch(&tet, 4e-3, false, true, &punch, &area).find("no face"), 0u);
+  BodySpec tet2 = tet;
+  tet2.fixed.clear();
+  ASSERT_EQ(add_flat_punch(&tet2, 5e-3, false, true, &punch, &area), "");
+  EXPECT_EQ(punch.size(), 4u);
+  EXPECT_NEAR(area, 4e-4, 1e-12);
 }
 
 }  // namespace

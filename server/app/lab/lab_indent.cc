@@ -1,9 +1,9 @@
 // conica-lab indent: a flat rigid punch pressed into the top face of a scene's body,
-// quasi-statically (lab/quasi_static.h). The top nodes within --punch-radius of the punch axis
-// (the top face's centre) move down together; the base (lowest face) is clamped with --bonded,
-// else held in z only (plus two nodes against rigid motion). Writes displacement_mm,force_N
-// (punch travel, force on the punch, pressing positive) and prints the step count and whether
-// every increment converged.
+// quasi-statically (lab/quasi_static.h). The nodes of every top element face whose centre lies
+// within --punch-radius of the punch axis (the top face's centre) move down together; the base
+// (lowest face) is clamped with --bonded, else held in z only (plus two nodes against rigid
+// motion). Writes displacement_mm,force_N (punch travel, force on the punch, pressing positive) and
+// prints the step count and whether every increment converged.
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -54,8 +54,9 @@ void register_indent(CLI::App& app, Runner* run) {
         return 2;
       }
       std::vector<int> punch;
+      double area = 0;
       if (std::string e =
-              add_flat_punch(&spec, o->radius_mm * 1e-3, o->punch_bonded, o->bonded, &punch);
+              add_flat_punch(&spec, o->radius_mm * 1e-3, o->punch_bonded, o->bonded, &punch, &area);
           !e.empty()) {
         std::fprintf(stderr, "conica-lab indent: %s: %s\n", o->scene.c_str(), e.c_str());
         return 2;
@@ -88,15 +89,16 @@ void register_indent(CLI::App& app, Runner* run) {
       for (const CurvePoint& p : c) std::fprintf(out, "%.6f,%.9g\n", p.displacement * 1e3, p.force);
       if (out != stdout) std::fclose(out);
       std::fprintf(stderr,
-                   "conica-lab indent: %s, %d nodes under a %.4g mm punch (%s), base %s; %d "
+                   "conica-lab indent: %s, %d nodes under a %.4g mm punch (%s; the faces it "
+                   "drives cover %.4g mm^2, a disc of radius %.4g mm), base %s; %d "
                    "increments, %ld implicit steps; %s: worst out-of-balance %.2g of the reaction "
                    "(tolerance %.2g), %d increment(s) unconverged, rollbacks %llu, hard stops "
                    "%llu; force at %.4g mm: %.6g N\n",
                    o->scene.c_str(), static_cast<int>(punch.size()), o->radius_mm,
-                   o->punch_bonded ? "bonded" : "frictionless", o->bonded ? "bonded" : "sliding",
-                   qs.increments, qs.steps, qs.unconverged == 0 ? "converged" : "NOT CONVERGED",
-                   qs.worst_residual, qo.tolerance, qs.unconverged,
-                   static_cast<unsigned long long>(qs.rollbacks),
+                   o->punch_bonded ? "bonded" : "frictionless", area * 1e6,
+                   std::sqrt(area / M_PI) * 1e3, o->bonded ? "bonded" : "sliding", qs.increments,
+                   qs.steps, qs.unconverged == 0 ? "converged" : "NOT CONVERGED", qs.worst_residual,
+                   qo.tolerance, qs.unconverged, static_cast<unsigned long long>(qs.rollbacks),
                    static_cast<unsigned long long>(qs.hard_stops), c.back().displacement * 1e3,
                    c.back().force);
       return qs.unconverged == 0 ? 0 : 3;
