@@ -150,7 +150,7 @@ ReactionFn plate_reaction() {
 }
 
 std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, bool base_bonded,
-                           std::vector<int>* punch, double* area) {
+                           std::vector<int>* punch, double* area, PunchRule rule) {
   const auto& nodes = spec->mesh.nodes;
   if (nodes.empty()) return "the body has no nodes";
   if (!(radius > 0) || !std::isfinite(radius)) return "punch radius must be > 0 m";
@@ -170,16 +170,26 @@ std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, boo
   const Vec3 c = 0.5 * (tlo + thi);
   // Whole element faces on the top plane whose centre lies within the radius: the punch drives
   // every node of each, as the continuum reference drives its quadratic faces (fem_reference.h).
+  // PunchRule::kNodes: the top nodes within the radius, the area that of the faces they drive
+  // whole.
+  auto within = [&](const Vec3& x) {
+    return std::hypot(x.x() - c.x(), x.y() - c.y()) <= radius + tol;
+  };
   std::vector<char> under(nodes.size(), 0);
+  if (rule == PunchRule::kNodes)
+    for (size_t i = 0; i < nodes.size(); ++i)
+      under[i] = nodes[i].z() >= hi.z() - tol && within(nodes[i]);
   double covered = 0;
   auto face = [&](const int* f, int n) {
     Vec3 m = Vec3::Zero();
+    bool all = true;
     for (int a = 0; a < n; ++a) {
       if (nodes[f[a]].z() < hi.z() - tol) return;
       m += nodes[f[a]];
+      all = all && under[f[a]];
     }
     m /= n;
-    if (std::hypot(m.x() - c.x(), m.y() - c.y()) > radius + tol) return;
+    if (rule == PunchRule::kNodes ? !all : !within(m)) return;
     const Vec3 &p0 = nodes[f[0]], &p1 = nodes[f[1]], &p2 = nodes[f[2]];
     covered += n == 3 ? 0.5 * (p1 - p0).cross(p2 - p0).norm()
                       : 0.5 * (p2 - p0).cross(nodes[f[3]] - p1).norm();
@@ -203,8 +213,10 @@ std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, boo
     if (under[i]) punch->push_back(i);
   if (area) *area = covered;
   if (punch->empty())
-    return "no face of the top lies under the punch (its centre farther than the radius from the "
-           "axis: radius smaller than half a cell?)";
+    return rule == PunchRule::kNodes
+               ? "no node of the top face lies under the punch (radius too small)"
+               : "no face of the top lies under the punch (its centre farther than the radius "
+                 "from the axis: radius smaller than half a cell?)";
   FixedSelector p;
   p.kind = FixedSelector::Kind::kNodes;
   p.nodes = *punch;

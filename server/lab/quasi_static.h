@@ -106,8 +106,13 @@ ReactionFn plate_reaction();
 // its centre held in x and y and one beside it in y against rigid motion. Adds the selectors to
 // `spec` and the punch nodes to *punch. Returns what is wrong (no face under the punch), empty
 // on success.
+// PunchRule::kNodes drives the top nodes within the radius instead (the faces between them
+// rigid, the ring of faces around ramping down: a smaller punch on a coarse lattice; the two
+// rules meet as the lattice is refined).
+enum class PunchRule { kFaces, kNodes };
 std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, bool base_bonded,
-                           std::vector<int>* punch, double* area = nullptr);
+                           std::vector<int>* punch, double* area = nullptr,
+                           PunchRule rule = PunchRule::kFaces);
 
 // The punch's load (travel u down) and reaction (N, upward force of the body on the punch).
 LoadFn punch_load(const std::vector<int>& punch);
