@@ -47,10 +47,18 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
   // equilibrium, so what an iteration that has not converged does to them (a node that slides
   // only on its way) is not kept; the points are committed where the increment settles.
   std::vector<std::vector<Vec3>> stick(m.planes.size());
+  bool stalled = false;  // the last settle_at stopped on a stall
   auto settle_at = [&](double u, double* rel) {
     load(m, s, u);
     for (size_t q = 0; q < m.planes.size(); ++q) stick[q] = s.planes[q].stick;
     double last = std::numeric_limits<double>::quiet_NaN();
+    // The best settle value so far, by iteration: an increment whose best has not fallen by 1 %
+    // in the last kStall iterations has stalled (a body drifting along a soft mode past its
+    // stability limit, never settling); more iterations of the same would not settle it.
+    constexpr int kStall = 50;
+    std::vector<double> best;
+    best.reserve(o.max_iterations);
+    stalled = false;
     for (int it = 0; it < o.max_iterations; ++it) {
       std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
       s.time = 0;
@@ -69,6 +77,8 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
                  : std::abs(f - last) / std::max(std::abs(f), 1e-30);
       if (*rel <= o.tolerance) return true;
       last = f;
+      best.push_back(std::min(*rel, best.empty() ? *rel : best.back()));
+      if (it >= kStall && !(best[it] < 0.99 * best[it - kStall])) return stalled = true, false;
     }
     return false;
   };
@@ -82,11 +92,15 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
     for (int i = 0; i < m.num_nodes(); ++i) s.x[i] += delta[i].cwiseProduct(m.free_axes[i]);
     double rel = std::numeric_limits<double>::infinity();
     bool settled = settle_at(u, &rel);
+    // Smaller parts while they help: a split that stalls no nearer balance than half the last
+    // attempt's value (a body at a bifurcation, not a step too large for Newton) is the last.
     for (int parts = 2; !settled && parts <= o.max_parts; parts *= 2) {
+      const double before = rel;
       s = saved;
       settled = true;
       for (int k = 1; k <= parts && settled; ++k)
         settled = settle_at(k == parts ? u : u_prev + (u - u_prev) * k / parts, &rel);
+      if (!settled && stalled && !(rel < 0.5 * before)) break;
     }
     if (!settled) ++st.unconverged;
     if (!settled && !(rel <= kQuasiStaticFailure) && st.failed_at < 0) st.failed_at = u;
@@ -100,6 +114,11 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
     }
     u_prev = u;
     st.increments = j;
+    if (o.progress) o.progress(j, u, rel, settled, st.steps);
+    if (o.stop_at_failure && st.failed_at >= 0) {
+      out.resize(j + 1);
+      break;
+    }
     if (stop && stop()) break;
   }
   st.rollbacks = s.counters.rollbacks;

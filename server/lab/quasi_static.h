@@ -48,6 +48,12 @@ struct QuasiStaticOptions {
   int newton_iterations = 4;
   int cg_iterations = 400;
   double cg_tolerance = 1e-10;  // relative residual of each Newton step's conjugate gradient
+  // Stop at the first increment that finds no equilibrium (QuasiStaticStats::failed_at): the
+  // curve ends with it, instead of spending the iteration budget on every increment past it.
+  bool stop_at_failure = false;
+  // Called after each increment with its number (1-based), travel u (m), final settle value
+  // (relative), whether it settled and the implicit steps taken so far: for a progress line.
+  std::function<void(int, double, double, bool, long)> progress;
 };
 
 // An increment whose settle criterion ends above this did not find an equilibrium at all (a body

@@ -100,10 +100,22 @@ TEST(QuasiStaticTest, AnIncrementFarOutOfBalanceIsReportedAsAFailure) {
   o.newton_iterations = 1;
   o.cg_iterations = 5;
   QuasiStaticStats st;
-  quasi_static_curve(m, plate_load(m), plate_reaction(), 0.004, o, &st);
+  const Curve all = quasi_static_curve(m, plate_load(m), plate_reaction(), 0.004, o, &st);
   EXPECT_GT(st.unconverged, 0);
   EXPECT_GT(st.worst_residual, kQuasiStaticFailure);
   EXPECT_NEAR(st.failed_at, 0.001, 1e-12);  // the first increment
+  EXPECT_EQ(all.size(), 5u);
+  EXPECT_EQ(st.increments, 4);
+  // Asked to stop there, the run ends with that increment: the same point, no more steps.
+  o.stop_at_failure = true;
+  QuasiStaticStats cut;
+  const Curve c = quasi_static_curve(m, plate_load(m), plate_reaction(), 0.004, o, &cut);
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_EQ(cut.increments, 1);
+  EXPECT_NEAR(cut.failed_at, 0.001, 1e-12);
+  EXPECT_EQ(c[1].displacement, all[1].displacement);
+  EXPECT_EQ(c[1].force, all[1].force);
+  EXPECT_EQ(cut.steps, 1);
 }
 
 TEST(QuasiStaticTest, BondedIsStifferThanFrictionless) {

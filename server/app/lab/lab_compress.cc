@@ -16,6 +16,7 @@
 //   compression_equilibria): the strain where the body buckles as a whole, which the material's
 //   check at load cannot see.
 //   A run that blew up or found no equilibrium fails (exit 3), its curve cut before it.
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -162,6 +163,19 @@ void register_compress(CLI::App& app, Runner* run) {
         QuasiStaticOptions qo;
         qo.samples = o->samples;
         qo.tolerance = o->tolerance;
+        qo.stop_at_failure = true;  // the curve is cut there anyway
+        // A line per increment on a long run (past 10 s), with an estimate of the time left.
+        const auto started = std::chrono::steady_clock::now();
+        qo.progress = [&, started](int j, double u, double rel, bool settled, long steps) {
+          const double t =
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+          if (t < 10) return;
+          std::fprintf(stderr,
+                       "conica-lab compress: increment %d of %d, %.4g mm: %s (%.2g of the "
+                       "reaction out of balance), %ld implicit steps, %.0f s, about %.0f s left\n",
+                       j, qo.samples, u * 1e3, settled ? "settled" : "NOT settled", rel, steps, t,
+                       t / j * (qo.samples - j));
+        };
         QuasiStaticStats qs;
         c = quasi_static_curve(m, plate_load(m), plate_reaction(), o->to_strain * height, qo, &qs);
         st.steps = qs.steps;
