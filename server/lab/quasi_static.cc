@@ -92,15 +92,38 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
     for (int i = 0; i < m.num_nodes(); ++i) s.x[i] += delta[i].cwiseProduct(m.free_axes[i]);
     double rel = std::numeric_limits<double>::infinity();
     bool settled = settle_at(u, &rel);
+    // The attempt at the full travel u that ended nearest balance, kept when none settles (a
+    // split that stops unsettled in an earlier part ends short of u).
+    State nearest;
+    double nearest_rel = rel, nearest_f = f;
+    if (!settled) nearest = s;
     // Smaller parts while they help: a split that stalls no nearer balance than half the last
     // attempt's value (a body at a bifurcation, not a step too large for Newton) is the last.
+    bool at_u = true;
     for (int parts = 2; !settled && parts <= o.max_parts; parts *= 2) {
       const double before = rel;
       s = saved;
       settled = true;
-      for (int k = 1; k <= parts && settled; ++k)
-        settled = settle_at(k == parts ? u : u_prev + (u - u_prev) * k / parts, &rel);
+      // A part that stops near balance (within kQuasiStaticFailure) does not end the split: the
+      // next part starts from it, so the attempt still reaches u.
+      int k = 1;
+      bool near = true;
+      for (; k <= parts && near; ++k) {
+        settled = settle_at(k == parts ? u : u_prev + (u - u_prev) * k / parts, &rel) && settled;
+        near = rel <= kQuasiStaticFailure;
+      }
+      at_u = k > parts;
+      if (!settled && at_u && rel < nearest_rel) {
+        nearest = s;
+        nearest_rel = rel;
+        nearest_f = f;
+      }
       if (!settled && stalled && !(rel < 0.5 * before)) break;
+    }
+    if (!settled && (!at_u || nearest_rel < rel)) {
+      s = nearest;
+      rel = nearest_rel;
+      f = nearest_f;
     }
     if (!settled) ++st.unconverged;
     if (!settled && !(rel <= kQuasiStaticFailure) && st.failed_at < 0) st.failed_at = u;
