@@ -61,6 +61,11 @@ bool read_measured_curves(const char* me, const std::vector<std::string>& paths,
 double warn_material_stability(const char* me, const Model& model, const Vec3& axis,
                                double to_strain);
 
+// QuasiStaticOptions::progress for a command ME of `samples` increments: past 10 s, a line per
+// increment on stderr (travel, settled or not, steps so far, time and time left).
+std::function<void(int, double, double, bool, long)> quasi_static_progress(const char* me,
+                                                                           int samples);
+
 // Runs `/usr/bin/python3 scripts/NAME.py ARGS...` from the source tree to draw a figure.
 // Returns the exit status; prints why on failure.
 int run_plot_script(const std::string& name, const std::string& args);

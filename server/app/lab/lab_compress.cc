@@ -32,6 +32,22 @@
 
 namespace conica::lab {
 
+// A line per increment on a long run (past 10 s), with an estimate of the time left.
+std::function<void(int, double, double, bool, long)> quasi_static_progress(const char* me,
+                                                                           int samples) {
+  const auto started = std::chrono::steady_clock::now();
+  return [me, samples, started](int j, double u, double rel, bool settled, long steps) {
+    const double t =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    if (t < 10) return;
+    std::fprintf(stderr,
+                 "%s: increment %d of %d, %.4g mm: %s (%.2g of the reaction out of balance), %ld "
+                 "implicit steps, %.0f s, about %.0f s left\n",
+                 me, j, samples, u * 1e3, settled ? "settled" : "NOT settled", rel, steps, t,
+                 t / j * (samples - j));
+  };
+}
+
 void register_compress(CLI::App& app, Runner* run) {
   struct Opts {
     std::string scene, out = "-", plot;
@@ -164,18 +180,7 @@ void register_compress(CLI::App& app, Runner* run) {
         qo.samples = o->samples;
         qo.tolerance = o->tolerance;
         qo.stop_at_failure = true;  // the curve is cut there anyway
-        // A line per increment on a long run (past 10 s), with an estimate of the time left.
-        const auto started = std::chrono::steady_clock::now();
-        qo.progress = [&, started](int j, double u, double rel, bool settled, long steps) {
-          const double t =
-              std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-          if (t < 10) return;
-          std::fprintf(stderr,
-                       "conica-lab compress: increment %d of %d, %.4g mm: %s (%.2g of the "
-                       "reaction out of balance), %ld implicit steps, %.0f s, about %.0f s left\n",
-                       j, qo.samples, u * 1e3, settled ? "settled" : "NOT settled", rel, steps, t,
-                       t / j * (qo.samples - j));
-        };
+        qo.progress = quasi_static_progress("conica-lab compress", qo.samples);
         QuasiStaticStats qs;
         c = quasi_static_curve(m, plate_load(m), plate_reaction(), o->to_strain * height, qo, &qs);
         st.steps = qs.steps;

@@ -70,6 +70,7 @@ void register_indent(CLI::App& app, Runner* run) {
       qo.samples = o->samples;
       qo.tolerance = o->tolerance;
       qo.stop_at_failure = true;  // the curve is cut there anyway
+      qo.progress = quasi_static_progress("conica-lab indent", qo.samples);
       QuasiStaticStats qs;
       Curve c = quasi_static_curve(m, punch_load(punch), punch_reaction(punch), o->depth_mm * 1e-3,
                                    qo, &qs);
