@@ -182,19 +182,12 @@ std::vector<std::array<int, 3>> boundary_triangles(const Mesh& m) {
     auto [it, inserted] = faces.try_emplace(key, 1, f);
     if (!inserted) ++it->second.first;
   };
-  for (const auto& t : m.tetrahedra) {
-    // Faces oriented outward for a positively oriented tetrahedron.
-    add({t[0], t[2], t[1]});
-    add({t[0], t[1], t[3]});
-    add({t[1], t[2], t[3]});
-    add({t[0], t[3], t[2]});
-  }
+  for (const auto& t : m.tetrahedra)
+    for (const auto& f : kTetFaces) add({t[f[0]], t[f[1]], t[f[2]]});
   // Hexahedron faces are keyed by their four nodes (neighbours may split them differently).
   std::map<std::array<int, 4>, std::pair<int, std::array<int, 4>>> quads;
   for (const auto& h : m.hexahedra) {
-    static constexpr int kQuads[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
-                                         {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
-    for (const auto& q : kQuads) {
+    for (const auto& q : kHexFaces) {
       std::array<int, 4> f = {h[q[0]], h[q[1]], h[q[2]], h[q[3]]}, key = f;
       std::sort(key.begin(), key.end());
       auto [it, inserted] = quads.try_emplace(key, 1, f);

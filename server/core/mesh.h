@@ -18,6 +18,12 @@ struct Region {
   std::vector<int> hexahedra;   // indices into Mesh::hexahedra
 };
 
+// The faces of an element by its local node numbers, oriented outward for a positively
+// oriented element (hexahedra in VTK/Gmsh order: bottom 0-3, top 4-7).
+inline constexpr int kTetFaces[4][3] = {{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {0, 3, 2}};
+inline constexpr int kHexFaces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                                        {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
+
 // Coordinates in metres once a scene has applied its unit scale; readers return file units.
 struct Mesh {
   std::vector<Vec3> nodes;                     // (num_nodes)

@@ -1,5 +1,6 @@
 #include "lab/quasi_static.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -237,9 +238,6 @@ std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, boo
                       : 0.5 * (p2 - p0).cross(nodes[f[3]] - p1).norm();
     for (int a = 0; a < n; ++a) under[f[a]] = 1;
   };
-  static constexpr int kHexFaces[6][4] = {{0, 1, 2, 3}, {4, 5, 6, 7}, {0, 1, 5, 4},
-                                          {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
-  static constexpr int kTetFaces[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
   for (const auto& h : spec->mesh.hexahedra)
     for (const auto& f : kHexFaces) {
       const int q[4] = {h[f[0]], h[f[1]], h[f[2]], h[f[3]]};

@@ -19,6 +19,7 @@
 
 #include "app/lab/lab.h"
 #include "io/curve_reader.h"
+#include "io/mesh_repair.h"
 #include "io/scene.h"
 #include "lab/calibration.h"
 #include "lab/compression.h"
@@ -209,12 +210,8 @@ void register_fem_reference(CLI::App& app, Runner* run) {
       std::string graded;
       const double fine = o->fine_mm >= 0 ? o->fine_mm * 1e-3 : 2 * c.punch_radius;
       if (c.test == FemCase::Test::kIndent && fine > 0) {
-        Vec3 lo = body.nodes[0], hi = lo;
-        for (const Vec3& x : body.nodes) {
-          lo = lo.cwiseMin(x);
-          hi = hi.cwiseMax(x);
-        }
-        if (std::string e = coarsen_box_lattice(spec.mesh, 0.5 * (lo + hi), fine, &body);
+        const io::BoundingBox box = io::bounding_box(body);
+        if (std::string e = coarsen_box_lattice(spec.mesh, 0.5 * (box.min + box.max), fine, &body);
             !e.empty()) {
           std::fprintf(stderr, "%s: %s: %s (--fine-mm 0 meshes the whole lattice)\n", me,
                        o->scene.c_str(), e.c_str());
