@@ -37,7 +37,7 @@ Model MakeBody(std::array<int, 3> nodes, bool conical, Integrator integ, double 
   b.bulk_modulus = bulk;
   b.spread_modulus = spread;
   b.shear_modulus = shear;
-  b.probes.push_back(ProbeSpec{0.008, 0});
+  b.probes.push_back(ProbeSpec{0.008, 0, ContactModel::kNodes});
   Model m;
   if (!build_model(b, &m).empty()) std::abort();
   return m;

@@ -5,7 +5,7 @@ per-tick difference, as a Markdown table (docs/speed-vs-accuracy.md).
 
     /usr/bin/python3 scripts/liver_press_integrators.py [--bin build/bin] [--out out/liver-press]
 
-The scenes are configs/liver.pbtxt with the probe penalty of the tradeoff sweep (100 N/m per node)
+The scenes are configs/liver.pbtxt with the node penalty of the tradeoff sweep (100 N/m per node)
 and the solver settings below, written to --out; the probe is pressed 10 mm along -y in 0.2 s at
 the sweep's press point and held to 0.3 s (300 ticks at 1 kHz).
 """
@@ -35,7 +35,8 @@ def scene_text(extra):
     mesh = re.search(r'path: "([^"]+)"', text).group(1)
     text = text.replace(mesh, os.path.normpath(os.path.join(ROOT, "configs", mesh)))
     text = text.replace('probe { name: "tool" radius: 0.01 }',
-                        'probe { name: "tool" radius: 0.01 stiffness: 100 }')
+                        'probe { name: "tool" radius: 0.01 stiffness: 100 contact: NODES }')
+    assert "contact: NODES" in text, "configs/liver.pbtxt's probe line changed"
     if "integrator: IMPLICIT_EULER" in extra:
         text = text.replace("  integrator: SYMPLECTIC_EULER\n", "")
     return text.replace("  mass_damping: 5\n", "  mass_damping: 5\n" + (extra + "\n" if extra else ""))

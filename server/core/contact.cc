@@ -840,6 +840,8 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     }
   };
   newton(at, c);
+  // Free and at the target to round-off: exactly at it, so a tool off the body feels exactly 0.
+  if (c.faces == 0 && kb == 0 && (at - target).norm() <= 1e-9 * R) at = target;
   p->friction_force.setZero();
   p->sliding = false;
   bool sticking = false;

@@ -115,15 +115,15 @@ enum class ToolShape : std::uint8_t {
                // half-space behind it); `radius` is its length scale (layer depth, defaults)
 };
 enum class ContactModel : std::uint8_t {
-  kNodes = 0,    // a sphere against the nodes, a penalty per node (core/step.h)
-  kSurface = 1,  // the tool against the deformed surface triangles through a proxy (core/contact.h)
+  kSurface = 0,  // the tool against the deformed surface triangles through a proxy (core/contact.h)
+  kNodes = 1,    // a sphere against the nodes, a penalty per node (core/step.h)
 };
 struct ProbeSpec {
   double radius = 5e-3;  // m
   double stiffness = 0;  // kNodes: N/m per node, 0: from node masses and the step;
                          // kSurface: Pa/m, the contact layer's pressure per metre of
                          // penetration, 0: from the tissue (kContactStiffnessFactor E* / R)
-  ContactModel contact = ContactModel::kNodes;
+  ContactModel contact = ContactModel::kSurface;
   ToolShape shape = ToolShape::kSphere;
   Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, punch and plane: the direction it
                                                      // pushes along

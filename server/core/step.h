@@ -17,7 +17,7 @@
 // Maxwell dashpot: e_m relaxes to delta with time constant tau, updated exactly per step:
 //   e_m <- delta + (e_m - delta) exp(-h / tau).
 // Contact with probes, by the probe's contact model.
-// ContactModel::kNodes (the default): per node inside a sphere of radius R around c (u = x - c, r =
+// ContactModel::kNodes: per node inside a sphere of radius R around c (u = x - c, r =
 // |u|):
 //   surface node with outward normal n: it leaves the sphere inward along -n by
 //     e = a + sqrt(a^2 - r^2 + R^2), a = u.n  (so the probe is pushed out of the body even after
@@ -33,7 +33,7 @@
 //   probe force = -sum f_node, and its 3x3 stiffness d(probe force)/dc (nodes held) exactly.
 // The surface potential's force is not its gradient (the normal direction is fixed per node): a
 // penalty of this form is not conservative in tangential motion, which the energy checks allow.
-// ContactModel::kSurface: rigid tools against the deformed surface through a proxy
+// ContactModel::kSurface (the default): rigid tools against the deformed surface through a proxy
 // (core/contact.h). At the start of a tick each probe's proxy moves toward its device target with
 // the nodes held (the proxy stage); the body then steps with the tools held at their proxies, the
 // contact layer's forces on the surface triangles' nodes in its forces. Explicit integrators take

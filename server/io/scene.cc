@@ -356,6 +356,7 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
       case v1::NODES:
         spec.contact = ContactModel::kNodes;
         break;
+      case v1::CONTACT_MODEL_UNSPECIFIED:
       case v1::SURFACE:
         spec.contact = ContactModel::kSurface;
         break;

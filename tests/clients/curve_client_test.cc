@@ -6,8 +6,11 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "client/connection.h"
 #include "net/builtin_scenes.h"
@@ -151,10 +154,18 @@ TEST_F(CurveClientTest, AuthorisedClientGetsForcesUnknownClientGetsNothing) {
   // Pressing 0.5, 1 and 2 mm into the top face over a lattice column: the body pushes the probe
   // up (+z), harder the deeper it goes, with no sizeable sideways force, and the reported
   // stiffness says the same (dFz/dz < 0).
-  double last = 0;
+  // Each depth reached as a device would, 0.05 mm per update a millisecond apart, then held for
+  // 0.2 s (a probe placed millimetres deep at once is followed by its proxy over some ticks and
+  // knocks the body into a transient).
+  double last = 0, at = 0;
   std::uint64_t seq = 1;
   for (double depth : {0.5e-3, 1e-3, 2e-3}) {
-    ASSERT_TRUE(Probe(conn, ++seq, Vec3(kNode, kNode, kTop + kRadius - depth), 5, &f)) << depth;
+    for (int k = 0; k < 400; ++k) {
+      at = std::min(depth, at + 5e-5);
+      ASSERT_TRUE(Probe(conn, ++seq, Vec3(kNode, kNode, kTop + kRadius - at), 5, &f)) << depth;
+      if (at == depth && k >= 200) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
     EXPECT_TRUE(f.contact) << depth;
     EXPECT_GT(f.force.z(), last) << depth;
     EXPECT_LT(f.force.head<2>().norm(), 0.05 * f.force.z()) << depth;

@@ -49,7 +49,7 @@ TEST(AllocationTest, StepAllocatesNothing) {
       b.options.integrator = integ;
       b.options.substeps = 2;
       b.options.mass_damping = 5;
-      b.probes.push_back(ProbeSpec{0.006, 0});
+      b.probes.push_back(ProbeSpec{0.006, 0, ContactModel::kNodes});
       PlaneSpec side;
       side.normal = Vec3::UnitX();
       side.offset = 0.001;  // touches the x = 0 face

@@ -30,7 +30,8 @@ Model Block(bool tets) {
   FixedSelector base;
   base.kind = FixedSelector::Kind::kPlane;
   b.fixed.push_back(base);
-  b.probes.push_back(ProbeSpec{kRadius, 300});  // N/m per node: stiffer than the tissue locally
+  b.probes.push_back(
+      ProbeSpec{kRadius, 300, ContactModel::kNodes});  // N/m per node: stiffer than the tissue
   b.options.integrator = Integrator::kImplicitEuler;
   b.options.mass_damping = 20;
   b.options.newton_iterations = 8;

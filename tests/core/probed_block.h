@@ -21,7 +21,7 @@ inline BodySpec ProbedBlock(Integrator integ) {
   b.fixed.push_back(base);
   b.options.integrator = integ;
   b.options.mass_damping = 30;
-  b.probes.push_back(ProbeSpec{5e-3, 0});
+  b.probes.push_back(ProbeSpec{5e-3, 0, ContactModel::kNodes});
   return b;
 }
 

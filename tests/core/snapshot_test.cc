@@ -66,6 +66,7 @@ Model Build(const Config& c) {
   surface.contact = ContactModel::kSurface;
   surface.friction = 0.4;
   ProbeSpec nodes;  // the node penalty
+  nodes.contact = ContactModel::kNodes;
   nodes.radius = 6e-3;
   nodes.stiffness = 50;
   b.probes = {surface, nodes};

@@ -65,7 +65,7 @@ Model Block(bool tets, bool jacobi = false) {
   plate.normal = Vec3(-1, 0, 0);
   plate.offset = -0.0196;
   b.planes = {plate};
-  b.probes.push_back(ProbeSpec{0.006, 0});
+  b.probes.push_back(ProbeSpec{0.006, 0, ContactModel::kNodes});
   b.options.integrator = Integrator::kImplicitEuler;
   b.options.linear_solver = jacobi ? LinearSolver::kBlockJacobiCG : LinearSolver::kFactorCG;
   b.options.mass_damping = 20;

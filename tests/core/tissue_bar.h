@@ -27,7 +27,7 @@ inline BodySpec TissueBar(std::array<int, 3> cells, bool active, double toleranc
   b.options.active_region = active;
   b.options.active_tolerance = tolerance;
   b.options.active_far_every = far_every;
-  b.probes.push_back(ProbeSpec{0.006, 0});
+  b.probes.push_back(ProbeSpec{0.006, 0, ContactModel::kNodes});
   return b;
 }
 

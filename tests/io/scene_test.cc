@@ -303,8 +303,15 @@ TEST(SceneTest, PlaneAndBondedToolsNeedSurfaceContactAndEveryNode) {
       "s.pbtxt", kConfigs);
   ASSERT_TRUE(ok) << ok.error();
   EXPECT_EQ(ok.value().spec.probes[0].shape, ToolShape::kPlane);
+  // A probe without `contact` is a surface probe; NODES is asked for by name.
+  for (auto [probe, model] : {std::pair{"probe { radius: 0.01 }\n", ContactModel::kSurface},
+                              {"probe { radius: 0.01 contact: NODES }\n", ContactModel::kNodes}}) {
+    auto r = parse_scene(std::string(kGood) + probe, "s.pbtxt", kConfigs);
+    ASSERT_TRUE(r) << r.error();
+    EXPECT_EQ(r.value().spec.probes[0].contact, model) << probe;
+  }
   const std::pair<const char*, const char*> bad[] = {
-      {"probe { radius: 0.01 shape: PLANE }\n",
+      {"probe { radius: 0.01 contact: NODES shape: PLANE }\n",
        "s.pbtxt:7:1: probe 0: shape PLANE needs contact: SURFACE"},
       {"probe { radius: 0.01 contact: SURFACE shape: PLANE }\n"
        "solver { integrator: IMPLICIT_EULER body_rate_hz: 50 }\n",
@@ -312,7 +319,7 @@ TEST(SceneTest, PlaneAndBondedToolsNeedSurfaceContactAndEveryNode) {
       {"probe { radius: 0.01 contact: SURFACE shape: PLANE }\n"
        "solver { active_region { tolerance: 1e-5 } }\n",
        "a PLANE tool needs every node integrated"},
-      {"probe { radius: 0.01 bonded: true }\n",
+      {"probe { radius: 0.01 contact: NODES bonded: true }\n",
        "s.pbtxt:7:1: probe 0: bonded needs contact: SURFACE"},
       {"probe { radius: 0.01 contact: SURFACE bonded: true friction: 0.5 }\n",
        "s.pbtxt:7:1: probe 0: bonded and friction exclude each other"},

@@ -46,7 +46,7 @@ BodySpec Lattice(const Vec3& size, const std::array<int, 3>& cells) {
   b.fixed.push_back(bottom);
   b.options.dt = 1 / kRate;
   b.options.mass_damping = 5;
-  b.probes.push_back(ProbeSpec{kRadius, 0});
+  b.probes.push_back(ProbeSpec{kRadius, 0, ContactModel::kNodes});
   return b;
 }
 BodySpec Small() { return Lattice(Vec3(0.02, 0.02, 0.01), {4, 4, 2}); }  // 75 nodes

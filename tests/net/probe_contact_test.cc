@@ -19,25 +19,34 @@ Model Cube() {
   return m;
 }
 
+// Both contact models: the surface proxy (the built-in cube's probe) and the node penalty. Both
+// sides start from the same probe state, so the surface proxy moves from the same place.
 TEST(ProbeContactTest, MatchesTheStepContactStage) {
-  const Model m = Cube();
-  State s = make_state(m);
-  Workspace ws(m);
-  const double x0 = 3 * 0.04 / 7;
-  // Deform the body a little first, so nodes are off the lattice.
-  set_probe(s, 0, Vec3(x0, x0, 0.04 + 5e-3 - 2e-3));
-  for (int k = 0; k < 100; ++k) step(m, s, ws);
-  for (const Vec3& c :
-       {Vec3(x0, x0, 0.0435), Vec3(x0 + 1e-3, x0 - 0.5e-3, 0.042), Vec3(0.02, 0.02, 0.2)}) {
-    set_probe(s, 0, c);
-    compute_forces(m, s, ws);  // the step's contact stage fills s.probes[0]
-    ProbeState mine;
-    probe_contact(m, s, 0, c, 0, &mine);
-    EXPECT_EQ(mine.contacts, s.probes[0].contacts);
-    EXPECT_TRUE(mine.force.isApprox(s.probes[0].force, 1e-12) ||
-                (mine.force.norm() == 0 && s.probes[0].force.norm() == 0));
-    EXPECT_LT((mine.stiffness - s.probes[0].stiffness).norm(),
-              1e-9 * (1 + s.probes[0].stiffness.norm()));
+  for (ContactModel model : {ContactModel::kSurface, ContactModel::kNodes}) {
+    Model m = Cube();
+    m.probes[0].contact = model;
+    State s = make_state(m);
+    Workspace ws(m);
+    const double x0 = 3 * 0.04 / 7;
+    // Deform the body a little first, so nodes are off the lattice.
+    set_probe(s, 0, Vec3(x0, x0, 0.04 + 5e-3 - 2e-3));
+    for (int k = 0; k < 100; ++k) step(m, s, ws);
+    for (const Vec3& c :
+         {Vec3(x0, x0, 0.0435), Vec3(x0 + 1e-3, x0 - 0.5e-3, 0.042), Vec3(0.02, 0.02, 0.2)}) {
+      set_probe(s, 0, c);
+      ProbeState mine = s.probes[0];
+      compute_forces(m, s, ws);  // the step's proxy and contact stages fill s.probes[0]
+      probe_contact(m, s, 0, c, 0, &mine);
+      const char* name = model == ContactModel::kSurface ? "surface" : "nodes";
+      if (c.z() < 0.0425) EXPECT_GT(mine.contacts, 0) << name;  // deeper than the press: touches
+      EXPECT_EQ(mine.contacts, s.probes[0].contacts) << name;
+      EXPECT_TRUE(mine.force.isApprox(s.probes[0].force, 1e-12) ||
+                  (mine.force.norm() == 0 && s.probes[0].force.norm() == 0))
+          << name << ": " << mine.force.transpose() << " vs " << s.probes[0].force.transpose();
+      EXPECT_LT((mine.stiffness - s.probes[0].stiffness).norm(),
+                1e-9 * (1 + s.probes[0].stiffness.norm()))
+          << name;
+    }
   }
 }
 

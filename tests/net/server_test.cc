@@ -99,6 +99,20 @@ class Client {
 
 Vec3 V(const v1::Vec3& v) { return Vec3(v.x(), v.y(), v.z()); }
 
+// The reply at `pose` once it stops changing. A surface probe's proxy sinks at most 0.02 R per
+// update (core/contact.h), so a device placed millimetres deep at once (the server paused) is
+// answered from a proxy still on its way for some updates, then from the settled one.
+v1::ForceReply Settled(Client& c, std::uint64_t* seq, const Vec3& pose) {
+  v1::ForceReply r = c.probe(++*seq, pose);
+  for (int k = 0; k < 200; ++k) {
+    const v1::ForceReply next = c.probe(++*seq, pose);
+    if (V(next.force()) == V(r.force())) return next;
+    r = next;
+  }
+  ADD_FAILURE() << "the replies at one pose did not settle in 200 updates";
+  return r;
+}
+
 class ServerTest : public ::testing::TestWithParam<bool> {  // param: TCP (else inproc)
  protected:
   void SetUp() override { StartServer(GetParam()); }
@@ -181,20 +195,21 @@ TEST_P(ServerTest, StiffnessMatchesFiniteDifferencesOfReplies) {
   ASSERT_TRUE(Control(v1::ControlRequest::PAUSE).ok());
   Client c(ctx_, server_->endpoints().probe);
   const Vec3 c0 = Pressed(2e-3, 0.7e-3, -0.4e-3);  // off-centre: every entry matters
-  const v1::ForceReply f0 = c.probe(1, c0);
+  std::uint64_t seq = 0;
+  const v1::ForceReply f0 = Settled(c, &seq, c0);
   ASSERT_TRUE(f0.contact());
   ASSERT_EQ(f0.stiffness().m_size(), 9);
   Mat3 K;
   for (int k = 0; k < 9; ++k) K(k / 3, k % 3) = f0.stiffness().m(k);
   const double h = 1e-6;  // m
   Mat3 fd;
-  std::uint64_t seq = 1;
   for (int j = 0; j < 3; ++j) {
     const Vec3 e = Vec3::Unit(j) * h;
     const Vec3 fp = V(c.probe(++seq, c0 + e).force()), fm = V(c.probe(++seq, c0 - e).force());
     fd.col(j) = (fp - fm) / (2 * h);
   }
-  EXPECT_LT((fd - K).norm(), 1e-4 * K.norm()) << "K\n" << K << "\nfd\n" << fd;
+  // 1e-3: each reply ends the proxy solve at its own tolerance (core/contact.h).
+  EXPECT_LT((fd - K).norm(), 1e-3 * K.norm()) << "K\n" << K << "\nfd\n" << fd;
   EXPECT_LT(K(2, 2), 0);  // deeper (lower z) means more upward force
 }
 
@@ -248,7 +263,8 @@ TEST_P(ServerTest, EveryBadInputIsAnsweredCountedAndChangesNothing) {
   const std::string ep = server_->endpoints().probe;
   Client c(ctx_, ep);
   const Vec3 good = Pressed(1.5e-3);
-  const v1::ForceReply before = c.probe(1, good);
+  std::uint64_t seq = 100;
+  const v1::ForceReply before = Settled(c, &seq, good);
   ASSERT_TRUE(before.contact());
 
   std::array<int, kNumErrorCodes> expected{};
@@ -510,10 +526,18 @@ TEST_P(ServerBusyPollTest, SpinningLoopTicksAnswersAndStops) {
   Client c(ctx, server.endpoints().probe);
   const v1::ForceReply far = c.probe(1, Vec3(kNode, kNode, kTop + kRadius + 0.01));
   EXPECT_FALSE(far.contact());
-  double last = 0;
+  // Each depth reached as a device would (0.05 mm per update, a millisecond apart) and held for
+  // 0.1 s: a surface probe placed deep at once knocks the body into a transient.
+  double last = 0, at = 0;
   std::uint64_t seq = 1;
   for (double depth : {0.5e-3, 1e-3, 2e-3}) {
-    const v1::ForceReply f = c.probe(++seq, Pressed(depth));
+    v1::ForceReply f;
+    for (int k = 0; k < 300; ++k) {
+      at = std::min(depth, at + 5e-5);
+      f = c.probe(++seq, Pressed(at));
+      if (at == depth && k >= 100) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
     EXPECT_TRUE(f.contact());
     EXPECT_GT(f.force().z(), last) << depth;  // up, harder with depth
     last = f.force().z();
@@ -529,7 +553,7 @@ TEST_P(ServerBusyPollTest, SpinningLoopTicksAnswersAndStops) {
   // more than the rate allows.
   EXPECT_GT(static_cast<double>(s.ticks - ticks0), 0.2 * 1000 * (elapsed_s - 0.1));
   EXPECT_LT(static_cast<double>(s.ticks - ticks0), 1000 * elapsed_s + 150);
-  EXPECT_EQ(s.replies_sent, 4u);
+  EXPECT_EQ(s.replies_sent, seq);  // one per update
 }
 
 INSTANTIATE_TEST_SUITE_P(Fractions, ServerBusyPollTest, ::testing::Values(1.0, 0.5));

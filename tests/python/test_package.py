@@ -5,7 +5,9 @@ install_package.py:
     CONICA_SERVER=build/bin/conica-server build/python/venv/bin/python -m pytest tests/python
 
 The built-in cube: 0.04 m on a side, min corner at the origin, a 7 x 7 x 4 cell lattice
-(8 x 8 x 5 = 320 nodes), bottom face fixed, one probe of radius 5 mm touching the nodes.
+(8 x 8 x 5 = 320 nodes), bottom face fixed, one probe of radius 5 mm touching the surface
+through a proxy (contact SURFACE): a reply depends on where the proxy was, so tests that compare
+replies first let it settle at a position (`settled`).
 """
 import asyncio
 import os
@@ -35,6 +37,18 @@ FAR = (0.02, 0.02, TOP + 0.02)  # m, 15 mm clear of the top face
 def pressed(depth, x=CENTRE_XY[0], y=CENTRE_XY[1]):
     """The probe centre `depth` m into the top face above (x, y)."""
     return np.array((x, y, TOP + RADIUS - depth))
+
+
+def settled(client, x):
+    """The reply at x once the proxy has settled there (the server paused): a proxy sinks at most
+    0.02 R per update, so a probe placed millimetres deep at once takes some updates."""
+    r = client.probe(x)
+    for _ in range(200):
+        nxt = client.probe(x)
+        if np.array_equal(nxt.force, r.force):
+            return nxt
+        r = nxt
+    raise AssertionError(f"the replies at {x} did not settle")
 
 
 @pytest.fixture(scope="module")
@@ -77,15 +91,18 @@ def test_far_from_the_body_the_force_is_zero(client):
 
 
 def test_pressed_in_the_force_points_out_of_the_body(client):
-    client.pause()  # the body holds still: each reply is the force at that probe position
-    top = client.probe(pressed(2e-3))
+    client.pause()  # the body holds still: the proxy settles at each probe position
+    top = settled(client, pressed(2e-3))
     assert top.contact
     assert top.force[2] > 0  # the top face pushes the probe up (+z)
     assert abs(top.force[0]) + abs(top.force[1]) < 1e-3 * top.force[2]
-    deeper = client.probe(pressed(3e-3))
+    deeper = settled(client, pressed(3e-3))
     assert deeper.force[2] > top.force[2]  # deeper presses harder
-    # Into the face x = 0 at mid height: pushed towards -x.
-    side = client.probe((-RADIUS + 2e-3, 0.02, 0.02))
+    # Into the face x = 0 at mid height (the proxy moved around, not through, the body): pushed
+    # towards -x.
+    for waypoint in (FAR, (-RADIUS - 5e-3, 0.02, FAR[2]), (-RADIUS - 5e-3, 0.02, 0.02)):
+        client.probe(waypoint)
+    side = settled(client, (-RADIUS + 2e-3, 0.02, 0.02))
     assert side.contact
     assert side.force[0] < 0
     assert abs(side.force[1]) + abs(side.force[2]) < 1e-3 * -side.force[0]
@@ -94,15 +111,18 @@ def test_pressed_in_the_force_points_out_of_the_body(client):
 def test_stiffness_is_the_derivative_of_the_force(client):
     """K = dF/dx from the reply against central differences of six further replies."""
     client.pause()
-    x0 = np.array((0.019, 0.0185, TOP + RADIUS - 1.5e-3))  # off the node columns: K has
-    k = client.probe(x0).stiffness                         # off-diagonal terms
+    # Over the edge x = 0 of the top face, the sphere touching the side face too: K has
+    # off-diagonal terms (on a flat face a frictionless tool's K is its normal entry alone).
+    x0 = np.array((0.0, 0.0185, TOP + RADIUS - 1.5e-3))
+    k = settled(client, x0).stiffness
     h = 1e-6  # m
     fd = np.column_stack([(client.probe(x0 + h * e).force - client.probe(x0 - h * e).force) / (2 * h)
                           for e in np.eye(3)])
     scale = np.abs(k).max()
     assert k[2, 2] < 0  # pressing deeper pushes back harder
-    assert np.abs(k[2, :2]).max() > 0.05 * scale  # a test of more than one entry
-    np.testing.assert_allclose(fd, k, rtol=0, atol=1e-4 * scale)
+    assert np.abs(k[0, 2]) > 0.05 * scale  # a test of more than one entry
+    # 1e-3: each reply ends the proxy solve at its own tolerance.
+    np.testing.assert_allclose(fd, k, rtol=0, atol=1e-3 * scale)
     # The reply's local model F0 + K dx predicts the force 0.1 mm away ten times better than
     # F0 alone (what is left is the law's curvature).
     r0, step = client.probe(x0), np.array((1e-4, -1e-4, -1e-4))
@@ -138,8 +158,8 @@ def test_position_frames_hold_every_node_as_a_float32_view(client):
         assert base.nbytes > p.nbytes  # the whole message, positions inside it
         np.testing.assert_allclose(p, rest, atol=1e-4)  # at rest (reset after each test)
 
-        # Pressed 3 mm for 0.3 s: the node under the probe goes down (by less than the press:
-        # the probe sinks in between the nodes), a top corner far away moves much less, and the
+        # Pressed 3 mm for 0.3 s: the node under the probe goes down by about the press (a
+        # little more while the lattice rings), a top corner far away moves much less, and the
         # fixed bottom face not at all.
         client.probe(pressed(3e-3))
         time.sleep(0.3)
@@ -147,7 +167,7 @@ def test_position_frames_hold_every_node_as_a_float32_view(client):
         dz = moved.positions[:, 2] - rest[:, 2]
         under = int(np.argmin(np.linalg.norm(rest - (CENTRE_XY[0], CENTRE_XY[1], TOP), axis=1)))
         corner = int(np.argmin(np.linalg.norm(rest - (SIZE, SIZE, TOP), axis=1)))
-        assert -3e-3 < dz[under] < -1e-4, dz[under]
+        assert -4e-3 < dz[under] < -2e-3, dz[under]
         # (the corner rings by up to ~11 % of the press in the lightly damped lattice)
         assert abs(dz[corner]) < 0.25 * abs(dz[under]), (dz[corner], dz[under])
         bottom = rest[:, 2] == 0
@@ -215,18 +235,17 @@ def test_refused_probe_updates_raise_server_error(client):
 
 def test_threads_share_a_client(client):
     """Four threads probe their own positions through one client while a fifth asks for stats:
-    every reply is the one to its own update (position echoed, force of that depth)."""
+    every reply is the one to its own update (position echoed, the tool in contact and pushed
+    out; the force itself depends on the order the updates moved the shared proxy in)."""
     client.pause()
     depths = [0.5e-3, 1e-3, 1.5e-3, 2e-3]  # m
-    expected = {d: client.probe(pressed(d)).force for d in depths}
-    assert len({f[2] for f in expected.values()}) == len(depths)  # four different forces
     failures = []
 
     def press(d):
         try:
             for _ in range(50):
                 r = client.probe(pressed(d))
-                if not (np.array_equal(r.position, pressed(d)) and np.array_equal(r.force, expected[d])):
+                if not (np.array_equal(r.position, pressed(d)) and r.contact and r.force[2] > 0):
                     failures.append((d, r.position, r.force))
         except Exception as e:  # noqa: BLE001 - reported below
             failures.append((d, e))
@@ -247,10 +266,12 @@ def test_threads_share_a_client(client):
 
 def test_pipelined_updates_are_answered_in_order(client):
     """send_probe() 40 updates before reading any reply: each reply is the one to its update
-    (the force of its depth, as probe() gives it one at a time)."""
+    (the force of its depth, as probe() gives it one at a time from the same start)."""
     client.pause()
     depths = np.linspace(0.2e-3, 3e-3, 40)  # m
+    client.probe(FAR)  # the proxy free, at FAR: both runs start from it
     expected = [client.probe(pressed(d)).force for d in depths]
+    client.probe(FAR)
     seqs = [client.send_probe(pressed(d)) for d in depths]
     assert client.outstanding == len(depths)
     got = [client.recv_reply() for _ in depths]
@@ -358,7 +379,7 @@ def test_damaged_state_frames_raise_protocol_error():
 def test_asyncio_client_gives_the_same_replies(server, client):
     client.pause()
     x = (0.019, 0.0185, TOP + RADIUS - 1.5e-3)
-    sync = client.probe(x)
+    sync = settled(client, x)
 
     async def run():
         async with conica.aio.Client(server.probe_endpoint, state_endpoint=server.state_endpoint,

@@ -5,7 +5,7 @@ the node clients/ros/conica-ros in namespace /probe0, and this test as a second 
 The scene is placed in the ROS frame "world" rotated 90 degrees about z and shifted by (1, 2, 0)
 m, so every position and force crosses a real transform (worked out by hand below, not with the
 node's code). A publisher sends measured_cp (PoseStamped) at 1000 Hz for 3 s: 1 s with the probe
-5 mm above the cube's top face, 0.5 s pressing 4 mm in, 1.5 s held. Checks: one servo_cf per pose
+5 mm above the cube's top face, 0.5 s pressing 2 mm in, 1.5 s held. Checks: one servo_cf per pose
 (loss), latency from the pose's stamp to the receipt of its servo_cf (p50 / p99), zero wrench off
 the body, a wrench pushing out of the top face (+z) when pressed, the stiffness pushing back
 (d Fz / d z < 0), the surface marker inside the transformed cube, poses in another frame ignored.
@@ -117,7 +117,9 @@ def main():
         procs.append(server)
 
         # ---- the server links, before ROS --------------------------------------------------
-        above, pressed = (0.02, 0.02, 0.050), (0.02, 0.02, 0.041)  # cube top z = 0.04, r = 5 mm
+        # Cube top z = 0.04, r = 5 mm. 2 mm in: deeper, the paper's card under a tool at a quad
+        # centre drifts sideways in a hold (the compressed cells lose their stability, docs/contact.md).
+        above, pressed = (0.02, 0.02, 0.050), (0.02, 0.02, 0.043)
         kinds = ["zmq"]
         try:
             from conica import Client  # noqa: F401
@@ -144,7 +146,7 @@ def main():
             mesh_pos, tris = lk.mesh()
             check(len(tris) > 0 and len(mesh_pos) == 320, f"{lk.kind}: GET_MESH gives the 320-node cube "
                   f"({len(mesh_pos)} nodes, {len(tris)} triangles)")
-        t_end = time.monotonic() + 0.3  # press 4 mm in and hold until the body settles
+        t_end = time.monotonic() + 0.3  # press 2 mm in and hold until the body settles
         while time.monotonic() < t_end:
             link.probe(pressed)
             time.sleep(0.001)
@@ -152,7 +154,7 @@ def main():
             r = lk.probe(pressed)
             forces[kind] = r.force[2]
             check(r.force[2] > 0.02 and r.stiffness[2][2] < 0,
-                  f"{lk.kind}: pressed 4 mm in, Fz = {r.force[2]:.4f} N > 0.02, "
+                  f"{lk.kind}: pressed 2 mm in, Fz = {r.force[2]:.4f} N > 0.02, "
                   f"dFz/dz = {r.stiffness[2][2]:.1f} N/m < 0")
         if len(kinds) == 2:
             a, b = forces["package"], forces["zmq"]
@@ -295,7 +297,7 @@ def main():
         fz = [w.wrench.force.z for w in hold]
         fxy = max(abs(w.wrench.force.x) + abs(w.wrench.force.y) for w in hold)
         check(len(hold) > 100 and min(fz) > 0.02,
-              f"pressed 4 mm in, the wrench pushes out of the top face: Fz min {min(fz):.4f} N > 0.02")
+              f"pressed 2 mm in, the wrench pushes out of the top face: Fz min {min(fz):.4f} N > 0.02")
         check(fxy < 0.2 * min(fz), f"and along the face normal (|Fx| + |Fy| max {fxy:.2e} N)")
         check(all(w.header.frame_id == "world" for w in hold), "servo_cf in the pose's frame")
         check(len(ks) >= len(received) and all(len(k) == 9 for k in ks), "a 3 x 3 stiffness per reply")

@@ -44,7 +44,9 @@ Model standard_body(const SpringCard& card, Integrator integ, double dt, bool to
   b.options.cg_iterations = 200;
   b.options.cg_tolerance = 1e-10;
   b.options.max_speed = 1e3;
-  b.probes.push_back(ProbeSpec{0.006, 0});
+  ProbeSpec probe{0.006, 0};
+  probe.contact = ContactModel::kNodes;  // the map of docs/stability.md: the node penalty
+  b.probes.push_back(probe);
   Model m;
   const std::string e = build_model(b, &m);
   if (!e.empty()) std::fprintf(stderr, "conica-lab stability: %s\n", e.c_str());

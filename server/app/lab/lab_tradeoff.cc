@@ -3,7 +3,8 @@
 //  - compression: a 60 x 60 x 40 mm box of the paper cube's material (configs/paper-cube.pbtxt),
 //    clamped base, frictionless top plate driven to 30 % strain in 0.15 s, held to 0.2 s;
 //    lattices of 20, 10, 6.7 and 5 mm cubic cells (48 to 1,521 nodes).
-//  - indentation: the liver (configs/liver.pbtxt, liver2.msh, 507 nodes) pressed 10 mm along -y
+//  - indentation: the liver (configs/liver-nodes.pbtxt, liver2.msh, 507 nodes, the node penalty
+//    whose per-node stiffness the sweep holds fixed) pressed 10 mm along -y
 //    at (-0.0485, 0.0716, -0.0093) m by its 10 mm probe (penalty 100 N/m per node, see
 //    --probe-stiffness) in 0.2 s, held to 0.3 s. --coarse-liver adds a coarser mesh (SOFA's
 //    liver.msh, 181 nodes) mapped onto it by principal axes; it is not in the default sweep
@@ -69,7 +70,7 @@ struct Experiment {
 
 struct SweepConfig {
   std::string cube_scene = "configs/paper-cube.pbtxt";
-  std::string liver_scene = "configs/liver.pbtxt";
+  std::string liver_scene = "configs/liver-nodes.pbtxt";
   std::string coarse_liver;  // a coarser liver mesh as a second resolution (empty: none)
   bool quick = false;
   bool verbose = true;
