@@ -24,6 +24,10 @@ constexpr double kTriPoints[6][3] = {{1 - 2 * kTriA, kTriA, kTriA}, {kTriA, 1 - 
 constexpr double kTriW[6] = {0.223381589678011, 0.223381589678011, 0.223381589678011,
                              0.109951743655322, 0.109951743655322, 0.109951743655322};
 
+// A sphere's disc against a triangle whose edges are all at most this fraction of the disc's
+// radius is integrated with the rim's arcs replaced by chords (sphere_triangle).
+constexpr double kChordEdge = 0.5;
+
 // Symmetric 3 x 3 from its six entries xx yy zz xy xz yz.
 Mat3 symmetric(const double s[6]) {
   Mat3 m;
@@ -249,9 +253,59 @@ void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator
   if (!(std::abs(z) < R)) return;
   const Vec3 F = c - z * n;  // the disc's centre in the triangle's plane
   const Vec3 Q[3] = {p0 - F, p1 - F, p2 - F};
-  disc_triangle(Q, n, std::sqrt(R * R - z * z), 1.0, [&](const double* l, double w) {
-    acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, l, w);
-  });
+  const double a = std::sqrt(R * R - z * z);
+  const double edge2 = std::max(
+      {(Q[1] - Q[0]).squaredNorm(), (Q[2] - Q[1]).squaredNorm(), (Q[0] - Q[2]).squaredNorm()});
+  if (edge2 <= kChordEdge * kChordEdge * a * a) {
+    // A triangle small against the disc: the part inside it is the polygon of the corners inside
+    // and the rim's crossings of the edges, each arc between two crossings replaced by its chord,
+    // split from its first corner into triangles that each get Dunavant's rule (p(g) is smooth
+    // inside the disc). What the chords leave out is a sliver at most c^2 / (8 a) wide (c <=
+    // kChordEdge a: the chord) where g <= (a / R) c^2 / (8 a), so it carries a fraction of order
+    // (c / a)^4 / 64 of the force the triangle's rim band does; a sphere's pressure vanishes at
+    // the rim, which is what makes this small (not so for a punch, whose rim carries its full
+    // pressure). Continuous as the tool moves: the polygon's corners move continuously.
+    const double a2 = a * a;
+    double L[6][3];
+    int np = 0;
+    for (int i = 0; i < 3; ++i) {
+      const int j = (i + 1) % 3;
+      if (Q[i].squaredNorm() < a2) {
+        L[np][0] = L[np][1] = L[np][2] = 0;
+        L[np++][i] = 1;
+      }
+      // |Q_i + t D|^2 = a^2, roots in (0, 1) in order along the edge.
+      const Vec3 D = Q[j] - Q[i];
+      const double qa = D.squaredNorm(), qb = Q[i].dot(D), qc = Q[i].squaredNorm() - a2;
+      const double disc = qb * qb - qa * qc;
+      if (!(qa > 0) || !(disc >= 0)) continue;
+      const double sq = std::sqrt(disc);
+      for (double t : {(-qb - sq) / qa, (-qb + sq) / qa})
+        if (t > 0 && t < 1) {
+          L[np][0] = L[np][1] = L[np][2] = 0;
+          L[np][i] = 1 - t;
+          L[np++][j] = t;
+        }
+    }
+    const double area = 0.5 * area2;
+    for (int q = 1; q + 1 < np; ++q) {
+      const double u1 = L[q][1] - L[0][1], u2 = L[q][2] - L[0][2];
+      const double v1 = L[q + 1][1] - L[0][1], v2 = L[q + 1][2] - L[0][2];
+      const double frac = std::abs(u1 * v2 - u2 * v1);  // sub-area / triangle area
+      if (!(frac > 0)) continue;
+      for (int k = 0; k < 6; ++k) {
+        double l[3];
+        for (int d = 0; d < 3; ++d)
+          l[d] = kTriPoints[k][0] * L[0][d] + kTriPoints[k][1] * L[q][d] +
+                 kTriPoints[k][2] * L[q + 1][d];
+        acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, l, area * frac * kTriW[k]);
+      }
+    }
+  } else {
+    disc_triangle(Q, n, a, 1.0, [&](const double* l, double w) {
+      acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, l, w);
+    });
+  }
   if (acc.touched) {  // the exact depth: R less the distance to the triangle
     Vec3 b;
     const double d = (closest_on_triangle(c, p0, p1, p2, &b) - c).norm();

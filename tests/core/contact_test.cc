@@ -185,6 +185,30 @@ TEST(ToolContactTest, SphereOnAFlatFaceMatchesTheAxisymmetricIntegralWhereverItS
   }
 }
 
+// A sphere much larger than the spacing: every triangle the rim crosses is small against the
+// disc, and its arcs are taken as chords (sphere_triangle). Same reference and tolerance.
+TEST(ToolContactTest, LargeSphereOnAFlatFaceMatchesTheAxisymmetricIntegralWhereverItSits) {
+  for (double R : {6 * kSpacing, 8 * kSpacing}) {
+    const Model m = Block(R);
+    const ContactLayer layer = contact_layer(m, 0, R);
+    // Contact radii 12.8-17.4 mm: at least twice the longest edge (the cells' diagonals, 7.1 mm),
+    // and inside the 40 mm top face wherever the tool sits.
+    for (double D : {0.08 * R, 0.1 * R, 0.15 * R}) {
+      if (std::sqrt(2 * R * D - D * D) > 0.0175) continue;
+      const double expect = FlatFaceForce(layer, R, D);
+      for (const Vec3& at : {Vec3(0.02, 0.02, 0), Vec3(0.0225, 0.02, 0), Vec3(0.0225, 0.0225, 0),
+                             Vec3(0.0213, 0.0241, 0), Vec3(0.0219, 0.0201, 0)}) {
+        ToolContact c;
+        tool_contact(m, 0, R, at + Vec3(0, 0, kTop + R - D), m.rest, nullptr, 0, &c);
+        EXPECT_NEAR(c.force.z(), expect, 2e-3 * expect)
+            << "R " << R << " D " << D << " at " << at.transpose();
+        EXPECT_NEAR(c.force.head<2>().norm(), 0.0, 2e-3 * expect);
+        EXPECT_NEAR(c.depth, D, 1e-3 * D);
+      }
+    }
+  }
+}
+
 TEST(ProxyTest, NeverCrossesTheSurfaceHoweverFarTheDeviceJumps) {
   const double R = 0.25 * kSpacing;
   const Model m = Block(R);
