@@ -14,6 +14,7 @@
 //    half-space: F = 2 a E* d, and the surface outside it sinks w(r) = (2 d / pi) asin(a / r).
 //    The block is 60 x 60 x 30 mm bonded to its base (h / a = 6), so the finite layer stiffens the
 //    punch a little over the half-space value.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -24,6 +25,7 @@
 #include <vector>
 
 #include "app/lab/lab.h"
+#include "core/contact.h"
 #include "core/step.h"
 #include "io/scene.h"
 #include "lab/calibration.h"
@@ -90,12 +92,48 @@ bool indent_force(BodySpec spec, double radius, double depth, PunchRule rule, do
   return true;
 }
 
+// A rigid frictionless sphere of radius R (surface contact through its proxy) pressed into the
+// middle of the top face to `depth` in `samples` increments, quasi-static: the indentation (the
+// device's travel less the coupling's stretch, m) and the force (N) at each increment.
+bool sphere_curve(BodySpec spec, double R, double depth, int samples, std::vector<double>* d,
+                  std::vector<double>* force, long* nodes, std::string* error) {
+  Vec3 lo = spec.mesh.nodes[0], hi = lo;
+  for (const Vec3& x : spec.mesh.nodes) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
+  const Vec3 top(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), hi.z());
+  ProbeSpec probe;
+  probe.radius = R;
+  probe.contact = ContactModel::kSurface;
+  spec.probes = {probe};
+  spec.options.integrator = Integrator::kImplicitEuler;
+  Model m;
+  if (std::string e = build_model(spec, &m); !e.empty()) return *error = e, false;
+  const double kvc = coupling_stiffness(m, 0, R);
+  QuasiStaticOptions o;
+  o.samples = samples;
+  o.tolerance = 1e-6;
+  QuasiStaticStats st;
+  const Curve c = quasi_static_curve(
+      m, [&](const Model&, State& s, double u) { set_probe(s, 0, top + Vec3(0, 0, R - u)); },
+      [](const Model&, const State& s, const Workspace&) { return s.probes[0].force.z(); }, depth,
+      o, &st);
+  if (st.unconverged) return *error = "sphere indentation did not converge", false;
+  d->clear();
+  force->clear();
+  for (const auto& pt : c) {
+    d->push_back(pt.displacement - pt.force / kvc);
+    force->push_back(pt.force);
+  }
+  *nodes = m.num_nodes();
+  return true;
+}
+
 }  // namespace
 
 void register_validate(CLI::App& app, Runner* run) {
   struct Opts {
     std::string configs = "configs/validation", out_dir = "validation-out";
     bool quick = false;
+    std::vector<std::string> cases = {"cylinder", "punch", "hertz"};
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -103,7 +141,10 @@ void register_validate(CLI::App& app, Runner* run) {
   cmd->add_option("--configs", o->configs, "folder of the validation scenes")
       ->capture_default_str();
   cmd->add_option("--out-dir", o->out_dir, "folder for the curves (CSV)")->capture_default_str();
-  cmd->add_flag("--quick", o->quick, "the served resolutions only (no refinement study)");
+  cmd->add_flag("--quick", o->quick,
+                "the served resolutions only (no refinement study, no Hertz sphere)");
+  cmd->add_option("--case", o->cases, "cylinder, punch, hertz (repeatable; default: all)")
+      ->check(CLI::IsMember({"cylinder", "punch", "hertz"}));
   cmd->callback([o, run] {
     *run = [o]() -> int {
       const char* me = "conica-lab validate";
@@ -124,8 +165,12 @@ void register_validate(CLI::App& app, Runner* run) {
       std::string error;
       // Cylinders: uniaxial and bonded, at the served resolution and refined.
       const double R = 0.025, H = 0.03, strain = 0.002, S = R / (2 * H);
+      auto wanted = [&](const char* c) {
+        return std::find(o->cases.begin(), o->cases.end(), c) != o->cases.end();
+      };
       std::vector<std::array<int, 2>> cyl_res = {{10, 6}};
       if (!o->quick) cyl_res = {{10, 6}, {14, 8}, {20, 12}};
+      if (!wanted("cylinder")) cyl_res.clear();
       for (const auto& r : cyl_res) {
         BodySpec s = cyl;
         s.mesh = make_cylinder_lattice(R, H, r[0], r[1]);
@@ -156,6 +201,7 @@ void register_validate(CLI::App& app, Runner* run) {
       const double Es = mo.E / (1 - mo.nu * mo.nu);
       std::vector<int> across = {24};
       if (!o->quick) across = {16, 24, 32};
+      if (!wanted("punch")) across.clear();
       for (int c : across) {
         BodySpec s = block;
         s.mesh = make_box_lattice(Vec3(0.06, 0.06, 0.03), {c, c, c / 2});
@@ -204,6 +250,35 @@ void register_validate(CLI::App& app, Runner* run) {
             "| Boussinesq surface profile w(r) / d, a_eq < r <= 25 mm: RMS difference | %d x "
             "%d x %d cells | %ld | %.4f | 0 (w / d = (2 / pi) asin(a_eq / r)) | (of d) |\n",
             c, c, c / 2, n, std::sqrt(rms / std::max(1, m)));
+      }
+      // Hertz: a 10 mm sphere on the same block, to a tenth of its radius (contact radius up to
+      // 3.2 mm against the 30 mm layer: a / h <= 0.11), F = (4 / 3) E* sqrt(R) d^1.5.
+      if (!o->quick && wanted("hertz")) {
+        const double Rs = 0.01, ds = 0.1 * Rs;
+        for (int c : {16, 24, 32}) {
+          BodySpec s = block;
+          s.mesh = make_box_lattice(Vec3(0.06, 0.06, 0.03), {c, c, c / 2});
+          std::vector<double> dd, ff;
+          long n = 0;
+          if (!sphere_curve(s, Rs, ds, 5, &dd, &ff, &n, &error)) {
+            std::fprintf(stderr, "%s: sphere: %s\n", me, error.c_str());
+            return 1;
+          }
+          const double hz = 4.0 / 3.0 * Es * std::sqrt(Rs) * std::pow(dd.back(), 1.5);
+          double mean = 0;
+          int k = 0;
+          for (size_t i = 1; i < dd.size(); ++i) {
+            if (!(dd[i] > 0.015 * Rs)) continue;
+            mean += std::abs(ff[i] / (4.0 / 3.0 * Es * std::sqrt(Rs) * std::pow(dd[i], 1.5)) - 1);
+            ++k;
+          }
+          std::printf(
+              "| sphere R = 10 mm on the 60 x 60 x 30 mm block, d = %.3g mm: force (mean |error| "
+              "over d = 0.2-1 mm: %.1f %%) | %d x %d x %d cells | %ld | %.5g N | %.5g N (Hertz, "
+              "(4 / 3) E* sqrt(R) d^1.5) | %+.2f %% |\n",
+              dd.back() * 1e3, 100 * mean / std::max(1, k), c, c, c / 2, n, ff.back(), hz,
+              100 * (ff.back() / hz - 1));
+        }
       }
       return 0;
     };
