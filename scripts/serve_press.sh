@@ -4,7 +4,7 @@
 # 1 mm approach, 4 mm press at 10 mm/s, 1.5 s hold, the probe at 1 kHz. Prints the server's loop
 # and body statistics (one line a second) and the press peak, the hold's mean force and its std
 # (the hold's last second). --surface serves a copy of the scene with `contact: SURFACE` in its
-# probe block (written next to it, for the mesh paths, and removed after).
+# probe block instead of what it says (written next to it, for the mesh paths, and removed after).
 #   scripts/serve_press.sh configs/liver-ef30.pbtxt -0.0739,0.0753,-0.0149 -y [--surface]
 #   scripts/serve_press.sh configs/phantom-ef30.pbtxt 0,0,0.035 -z --surface
 set -euo pipefail
@@ -15,7 +15,7 @@ bin=${BUILD_DIR:-build}/bin
 out=$(mktemp -d)
 if [ "${4:-}" = --surface ]; then
   copy="$(dirname "$scene")/.surface-$(basename "$scene")"
-  sed -E 's/^(probe \{[^}]*)\}/\1contact: SURFACE }/' "$scene" >"$copy"
+  sed -E -e '/^probe \{/s/ contact: [A-Z_]+//' -e 's/^(probe \{[^}]*)\}/\1contact: SURFACE }/' "$scene" >"$copy"
   grep -q 'contact: SURFACE' "$copy" || { echo "$scene: no one-line probe block to switch" >&2; rm -f "$copy"; exit 2; }
   trap 'rm -f "$copy"' EXIT
   scene=$copy

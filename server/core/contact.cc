@@ -82,7 +82,9 @@ struct Accumulator {
   Mat3* b[3];  // node blocks (null: not wanted)
   unsigned terms = kToolAll;
   double* ar[3] = {nullptr, nullptr, nullptr};  // node area shares (null: not wanted)
+  Mat3* pr = nullptr;                           // the triangle's six pair blocks (null: not wanted)
   double al[3] = {0, 0, 0};
+  double pl[6][6] = {};
   bool touched = false;
   double energy = 0, s0 = 0, depth = 0;
   Vec3 force = Vec3::Zero();
@@ -109,7 +111,7 @@ struct Accumulator {
     if (ar[0])
       for (int a = 0; a < 3; ++a) al[a] += w * l[a];
     const bool stiffness = terms & kToolStiffness;
-    if (!stiffness && !b[0]) {
+    if (!stiffness && !b[0] && !pr) {
       if (f[0])
         for (int a = 0; a < 3; ++a) fl[a] += (w * l[a] * p) * u;
       return;
@@ -131,6 +133,13 @@ struct Accumulator {
         for (int k = 0; k < 6; ++k) bl[a][k] += wa * uu[k];
       }
     }
+    if (pr) {
+      const double wd = w * dp;
+      const double c[6] = {wd * l[0] * l[0], wd * l[1] * l[1], wd * l[2] * l[2],
+                           wd * l[0] * l[1], wd * l[0] * l[2], wd * l[1] * l[2]};
+      for (int j = 0; j < 6; ++j)
+        for (int k = 0; k < 6; ++k) pl[j][k] += c[j] * uu[k];
+    }
   }
 
   void flush() {
@@ -147,6 +156,8 @@ struct Accumulator {
       if (b[a]) *b[a] += symmetric(bl[a]);
       if (ar[a]) *ar[a] += al[a];
     }
+    if (pr)
+      for (int j = 0; j < 6; ++j) pr[j] += symmetric(pl[j]);
   }
 };
 
@@ -579,7 +590,7 @@ double contact_modulus(const Model& m) {
 
 void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::vector<Vec3>& x,
                   const int* tris, int n, ToolContact* out, Vec3* node_force, Mat3* node_block,
-                  unsigned terms, double* node_area) {
+                  unsigned terms, double* node_area, Mat3* node_pair) {
   *out = ToolContact{};
   const ContactLayer layer = contact_layer(m, k, R);
   const int count = tris ? n : static_cast<int>(m.surface.size());
@@ -606,6 +617,7 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
       const SphereTool tool{pose, R};
       Accumulator<SphereTool> acc{
           layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}, terms, {ar[0], ar[1], ar[2]}};
+      if (node_pair && tris) acc.pr = node_pair + 6 * q;
       sphere_triangle(p0, p1, p2, acc);
       touched = acc.touched;
     } else {
@@ -615,6 +627,7 @@ void tool_contact(const Model& m, int k, double R, const Vec3& pose, const std::
       const PunchTool tool{pose, axis};
       Accumulator<PunchTool> acc{
           layer, tool, out, {f[0], f[1], f[2]}, {b[0], b[1], b[2]}, terms, {ar[0], ar[1], ar[2]}};
+      if (node_pair && tris) acc.pr = node_pair + 6 * q;
       if (spec.shape == ToolShape::kPlane)
         plane_triangle(p0, p1, p2, acc);
       else

@@ -185,10 +185,16 @@ double contact_modulus(const Model& model);
 // (left zero in `out`): the contact stage asks for the node terms only.
 // When node_area is given, adds to node_area[i] each node's share int l_i dA of the surface
 // inside the tool (m^2).
+// When node_pair is given (with tris), adds to node_pair[6 q + j] the pair blocks of the q-th
+// listed triangle, K_ab = sum w lambda_a lambda_b p' n n^T for its corners (a, b) = (0, 0),
+// (1, 1), (2, 2), (0, 1), (0, 2), (1, 2) (K_ba = K_ab): minus the derivative of the layer's force
+// on corner a with respect to corner b's position (its pressure term, the one the lumped blocks
+// sum: node_block of a corner is the sum of its row), for a Newton method on the nodes that
+// converges as the exact one does.
 void tool_contact(const Model& model, int probe, double radius, const Vec3& pose,
                   const std::vector<Vec3>& x, const int* tris, int n, ToolContact* out,
                   Vec3* node_force = nullptr, Mat3* node_block = nullptr, unsigned terms = kToolAll,
-                  double* node_area = nullptr);
+                  double* node_area = nullptr, Mat3* node_pair = nullptr);
 
 // The proxy stage for probe k: moves the proxy of *probe (from its last pose, carried by the
 // surface, toward probe->center) and fills probe->force, stiffness, depth, contacts, proxy and

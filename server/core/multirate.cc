@@ -107,11 +107,11 @@ void choose_surface_region(const Model& m, const std::vector<Vec3>& x, const Vec
 // The layer's force (and lumped blocks) of surface probe k with its tool at the proxy of p, over
 // the triangles `tris` at positions x, into force / block (added; the caller zeroes them).
 void layer_forces(const Model& m, int k, const ProbeState& p, const std::vector<Vec3>& x,
-                  const std::vector<int>& tris, Vec3* force, Mat3* block) {
+                  const std::vector<int>& tris, Vec3* force, Mat3* block, Mat3* pair = nullptr) {
   if (!p.active || !p.proxy_placed) return;
   ToolContact c;
   tool_contact(m, k, probe_radius(m, k, p), p.proxy, x, tris.data(), static_cast<int>(tris.size()),
-               &c, force, block, kToolForceOnly);
+               &c, force, block, kToolForceOnly, nullptr, pair);
 }
 
 }  // namespace
@@ -131,12 +131,17 @@ LocalModel::LocalModel(int cap)
       jac(9 * static_cast<size_t>(cap) * cap, 0.0),
       rhs(3 * static_cast<size_t>(cap), 0.0),
       g(9 * static_cast<size_t>(cap), 0.0),
-      pivot(4 * static_cast<size_t>(cap), 0) {}
+      pivot(4 * static_cast<size_t>(cap), 0),
+      coupled_count(cap, 0),
+      coupled_node(static_cast<size_t>(kMaxCoupled) * cap, -1),
+      coupled(static_cast<size_t>(kMaxCoupled) * cap, Mat3::Zero()) {}
 
 SurfaceScratch::SurfaceScratch(const Model& m)
     : candidates(m.probes.size(), ContactCandidates(m)),
       force(m.num_nodes(), Vec3::Zero()),
-      block(m.num_nodes(), Mat3::Zero()) {}
+      block(m.num_nodes(), Mat3::Zero()),
+      pair(6 * m.surface.size(), Mat3::Zero()),
+      region(m.num_nodes(), -1) {}
 
 LocalModelBuilder::LocalModelBuilder(const Model& m)
     : factor_(std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)),
@@ -353,6 +358,8 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     if (!std::isfinite(lm.dx[a].squaredNorm())) lm.dx[a].setZero();
 
   ContactCandidates* cand = layer ? &surface->candidates[k] : nullptr;
+  if (layer)  // the region's indices by node, for the layer's pair blocks (reset on the way out)
+    for (int a = 0; a < num; ++a) surface->region[lm.nodes[a]] = a;
   // f and dfdc = df/dx at x0 + dx: the node law, or the layer at the held proxy (dfdc = -B, its
   // lumped blocks; the region's positions x0 + dx go into x, where the layer reads them).
   auto forces = [&]() {
@@ -369,11 +376,48 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
           surface->block[i].setZero();
         }
       ++evaluations;
-      layer_forces(m, k, *probe, *x, cand->triangles, surface->force.data(), surface->block.data());
+      const int nt = static_cast<int>(cand->triangles.size());
+      std::fill(surface->pair.begin(), surface->pair.begin() + 6 * nt, Mat3::Zero());
+      layer_forces(m, k, *probe, *x, cand->triangles, surface->force.data(), surface->block.data(),
+                   surface->pair.data());
       for (int a = 0; a < num; ++a) {
         lm.f[a] = surface->force[lm.nodes[a]];
         lm.dfdc[a] = -surface->block[lm.nodes[a]];
+        lm.coupled_count[a] = 0;
       }
+      // The pair blocks, column by column over the region (a pair with a corner outside it, or
+      // past a column's room, stays in the lumped diagonal instead: a slower Newton, same answer).
+      constexpr int kPairs[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
+      auto couple = [&](int row, int col, const Mat3& K) {
+        const int base = col * LocalModel::kMaxCoupled;
+        for (int e = 0; e < lm.coupled_count[col]; ++e)
+          if (lm.coupled_node[base + e] == row) return lm.coupled[base + e] += K, true;
+        if (lm.coupled_count[col] == LocalModel::kMaxCoupled) return false;
+        lm.coupled_node[base + lm.coupled_count[col]] = row;
+        lm.coupled[base + lm.coupled_count[col]++] = K;
+        return true;
+      };
+      bool complete = true;
+      for (int q = 0; q < nt && complete; ++q) {
+        const auto& tri = m.surface[cand->triangles[q]];
+        for (int j = 0; j < 6 && complete; ++j) {
+          const Mat3& K = surface->pair[6 * q + j];
+          if (K.squaredNorm() == 0) continue;
+          const int ra = surface->region[tri[kPairs[j][0]]],
+                    rb = surface->region[tri[kPairs[j][1]]];
+          if (ra < 0 || rb < 0) {
+            complete = false;
+            break;
+          }
+          complete = couple(ra, rb, K) && (ra == rb || couple(rb, ra, K));
+        }
+      }
+      if (!complete)  // the lumped blocks alone
+        for (int a = 0; a < num; ++a) {
+          lm.coupled_count[a] = 1;
+          lm.coupled_node[a * LocalModel::kMaxCoupled] = a;
+          lm.coupled[a * LocalModel::kMaxCoupled] = -lm.dfdc[a];
+        }
       return;
     }
     for (int a = 0; a < num; ++a) {
@@ -408,12 +452,24 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     }
     return worst;
   };
-  // (W Q)_{row, active column}, Q = B0 + dfdc (dfdc = df/dx: the node force depends on x - c).
+  // (W Q)_{row, active column}, Q = B0 + df/dx: the node law's dfdc (its node force depends on
+  // x - c only), the layer's -K over the nodes it couples.
   auto wq = [&](int row, int t, int cb) {
     const int b = act[t];
-    const Mat3 q = lm.b0[b] + lm.dfdc[b];
     const double* wr = &lm.w[row * ld + 3 * b];
-    return wr[0] * q(0, cb) + wr[1] * q(1, cb) + wr[2] * q(2, cb);
+    if (!layer) {
+      const Mat3 q = lm.b0[b] + lm.dfdc[b];
+      return wr[0] * q(0, cb) + wr[1] * q(1, cb) + wr[2] * q(2, cb);
+    }
+    const Mat3& q0 = lm.b0[b];
+    double s = wr[0] * q0(0, cb) + wr[1] * q0(1, cb) + wr[2] * q0(2, cb);
+    const int base = b * LocalModel::kMaxCoupled;
+    for (int e = 0; e < lm.coupled_count[b]; ++e) {
+      const double* we = &lm.w[row * ld + 3 * lm.coupled_node[base + e]];
+      const Mat3& K = lm.coupled[base + e];
+      s -= we[0] * K(0, cb) + we[1] * K(1, cb) + we[2] * K(2, cb);
+    }
+    return s;
   };
   // J = I - W Q has identity columns off the active set: LU of its active block J_AA in jac.
   auto factor_jacobian = [&]() {
@@ -480,12 +536,17 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     update_proxy(m, k, *x, cand, probe);
   }
   lm.fresh = false;
+  const int evaluations_before = evaluations;
   solve();
   lm.newton_iterations = it;
+  lm.layer_evaluations = evaluations_before + evaluations;
   lm.residual = res;
   // Surface contact: the device has the coupling force and stiffness of the proxy's update, and
   // x the region at x0 + dx (the last evaluation wrote it: solve() ends on its final iterate).
-  if (layer) return;
+  if (layer) {
+    for (int a = 0; a < num; ++a) surface->region[lm.nodes[a]] = -1;
+    return;
+  }
 
   probe->force.setZero();
   probe->stiffness.setZero();

@@ -63,10 +63,17 @@ struct LocalModel {
   std::vector<Vec3> f, dx, dx_last, step;
   std::vector<Mat3> dfdc;
   std::vector<double> jac, rhs, g;
-  std::vector<int> pivot;     // (4 capacity) LU pivots, then the active nodes
-  bool fresh = false;         // dx was reset (a new region or body state): no answer yet
-  int newton_iterations = 0;  // of the last haptic_contact
-  double residual = 0;        // m, its final |R(dx)|
+  std::vector<int> pivot;  // (4 capacity) LU pivots, then the active nodes
+  // Surface contact: the layer's coupling of the region's nodes, column by column: node a's
+  // entries (kMaxCoupled at most) are the nodes b with K_ba != 0 and K_ba (N/m, minus the
+  // derivative of the layer's force on b with respect to a's position).
+  static constexpr int kMaxCoupled = 24;
+  std::vector<int> coupled_count, coupled_node;  // (capacity), (kMaxCoupled capacity)
+  std::vector<Mat3> coupled;                     // (kMaxCoupled capacity)
+  bool fresh = false;                            // dx was reset (a new region or body state)
+  int newton_iterations = 0;                     // of the last haptic_contact
+  int layer_evaluations = 0;                     // of the last haptic_contact (surface contact)
+  double residual = 0;                           // m, its final |R(dx)|
 };
 
 // The 1 kHz side's scratch for probes with surface contact, sized for the model at load: each
@@ -76,6 +83,8 @@ struct SurfaceScratch {
   std::vector<ContactCandidates> candidates;  // (probes)
   std::vector<Vec3> force;                    // (nodes) N
   std::vector<Mat3> block;                    // (nodes) N/m
+  std::vector<Mat3> pair;                     // (6 surface triangles) N/m: tool_contact's pairs
+  std::vector<int> region;                    // (nodes) index in the region, or -1
 };
 
 // The body's side: owns the factor W comes from (allocates: at load).
