@@ -17,6 +17,7 @@ NAME.key):
 import argparse
 import csv
 import sys
+import time
 
 try:
     import conica
@@ -36,6 +37,9 @@ def main():
     ap.add_argument("--approach", type=float, default=0.005, help="m, start this far above")
     ap.add_argument("--steps", type=int, default=500, help="updates from start to full depth")
     ap.add_argument("--hold", type=int, default=200, help="updates held at full depth")
+    ap.add_argument("--rate-hz", type=float, default=1000,
+                    help="updates per second, paced as a haptic device would (0: each as soon as the "
+                         "last reply is back)")
     ap.add_argument("--timeout-ms", type=int, default=2000)
     ap.add_argument("--out", default="-", help="CSV file ('-': stdout)")
     ap.add_argument("--curve-server-pub", metavar="FILE",
@@ -56,11 +60,14 @@ def main():
     out = sys.stdout if args.out == "-" else open(args.out, "w", newline="")
     w = csv.writer(out)
     w.writerow(["t", "probe", "seq", "x", "y", "z", "fx", "fy", "fz", "contact", "rtt_us"])
-    dt = 1e-3  # s of script time per update
+    dt = 1e-3 if args.rate_hz <= 0 else 1 / args.rate_hz  # s of script time per update
     total = args.steps + args.hold
     try:
         with conica.Client(args.endpoint, timeout=args.timeout_ms / 1e3, curve=curve) as client:
+            start = time.monotonic()
             for seq in range(total + 1):
+                if args.rate_hz > 0:  # on schedule: a late update is sent at once, not skipped
+                    time.sleep(max(0.0, start + seq * dt - time.monotonic()))
                 d = -args.approach + (args.approach + args.depth) * min(seq, args.steps) / args.steps
                 z = z0 - d
                 r = client.probe((x0, y0, z), probe_id=args.probe)

@@ -798,6 +798,10 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     p->proxy_placed = true;
   } else if (p->anchor >= 0 && p->anchor < nt) {
     start = carried_point(m, x, p->anchor, p->anchor_bary, p->anchor_offset);
+    // Carried by a surface that has not moved: the proxy where it was, not its round trip through
+    // the anchor's coordinates (which moves it by round-off, so that replies against a paused
+    // body would alternate in their last bits instead of repeating).
+    if ((start - p->proxy).norm() <= 1e-12 * R) start = p->proxy;
   }
   // Candidates: triangles whose bounding sphere meets the capsule from start to target, widened
   // by the tool's reach.

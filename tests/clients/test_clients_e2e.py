@@ -81,6 +81,13 @@ def main():
                  for i in range(3)]
         check(bands[0] < bands[1] < bands[2], f"force rises with depth (band means {bands} N)")
 
+        # The body back at rest: the press above released the cube, which rings for about a
+        # second (mass damping 5 /s) and would meet probe.py's paced press on its way up.
+        import conica  # this interpreter has the package (--python-client)
+        with conica.Client(ep(p), control_endpoint=ep(c)) as ctl:
+            ctl.probe((0.02, 0.02, 0.1))  # the probe well clear of the body
+            ctl.reset()
+
         pyrec = os.path.join(tmp, "py.csv")
         r = subprocess.run([sys.executable, args.python_client, "--endpoint", ep(p),
                             "--steps", "200", "--hold", "20", "--out", pyrec],

@@ -60,7 +60,7 @@ class ProbeCurveTest(unittest.TestCase):
     def probe(self, key, server_pub="server.key", extra=()):
         return run([sys.executable, PROBE_PY, "--endpoint", self.server.probe_endpoint,
                     "--at", f"{NODE_XY},{NODE_XY},{TOP + RADIUS}", "--depth", "0.002",
-                    "--approach", "0.002", "--steps", "40", "--hold", "5",
+                    "--approach", "0.002", "--steps", "200", "--hold", "20",
                     "--curve-server-pub", self.path(server_pub), "--curve-key", self.path(key),
                     *extra])
 
@@ -68,15 +68,16 @@ class ProbeCurveTest(unittest.TestCase):
         r = self.probe("clients/alice.key_secret")
         self.assertEqual(r.returncode, 0, r.stderr)
         rows = list(csv.DictReader(io.StringIO(r.stdout)))
-        self.assertEqual(len(rows), 46)
+        self.assertEqual(len(rows), 221)
         first, last = rows[0], rows[-1]
         self.assertEqual(first["contact"], "0")  # starts 2 mm above the surface
         self.assertEqual(float(first["fz"]), 0.0)
         self.assertEqual(last["contact"], "1")   # 2 mm deep
         self.assertGreater(float(last["fz"]), 0.0)  # the body pushes the probe up
-        # Deeper is harder: the force at 2 mm exceeds the force at 1 mm (row 30 of 40 steps).
-        self.assertGreater(float(last["fz"]), float(rows[30]["fz"]))
-        self.assertGreater(float(rows[30]["fz"]), 0.0)
+        # Deeper is harder: the force at 2 mm exceeds the force at 1 mm (row 150 of 200 steps, a
+        # press at 20 mm/s paced at 1 kHz).
+        self.assertGreater(float(last["fz"]), float(rows[150]["fz"]))
+        self.assertGreater(float(rows[150]["fz"]), 0.0)
         self.assertLess(abs(float(last["fx"])) + abs(float(last["fy"])), 0.05 * float(last["fz"]))
 
     def test_unknown_key_gets_no_reply(self):

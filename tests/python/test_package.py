@@ -48,7 +48,7 @@ def settled(client, x):
         if np.array_equal(nxt.force, r.force):
             return nxt
         r = nxt
-    raise AssertionError(f"the replies at {x} did not settle")
+    raise AssertionError(f"the replies at {x} did not settle: {nxt.force}, before {r.force}")
 
 
 @pytest.fixture(scope="module")
