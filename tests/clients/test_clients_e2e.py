@@ -90,16 +90,22 @@ def main():
 
         pyrec = os.path.join(tmp, "py.csv")
         r = subprocess.run([sys.executable, args.python_client, "--endpoint", ep(p),
-                            "--steps", "200", "--hold", "20", "--out", pyrec],
+                            "--steps", "400", "--hold", "20", "--out", pyrec],
                            capture_output=True, text=True, timeout=60)
         check(r.returncode == 0, f"probe.py exits 0 ({r.stderr.strip()})")
         _, pdepth, pfn = press_forces(pyrec)
-        # A fast press (9 mm in 0.2 s): the force rises with depth while pressing (its peak in the
-        # deepest quarter) and stays on the tool while held (the body relaxes, so it falls).
-        peak = max(range(len(pfn)), key=lambda i: pfn[i])
-        check(pfn[-1] > 0 and abs(pfn[0]) < 1e-12 and pdepth[peak] >= 0.75 * max(pdepth),
-              f"probe.py: force at full depth {pfn[-1]:.4f} N, peak {pfn[peak]:.4f} N at "
-              f"{pdepth[peak] * 1e3:.2f} mm of {max(pdepth) * 1e3:.2f} mm")
+        # A press of 10 mm in 0.4 s paced at 1 kHz: the force rises with depth while pressing (the
+        # means of three depth bands of the contact) and stays on the tool while held.
+        pin = [(d, f) for d, f in zip(pdepth, pfn) if f > 0]
+        pbands = []
+        if len(pin) > 30:
+            p0, p1 = pin[0][0], max(pdepth)
+            pthird = (p1 - p0) / 3
+            pbands = [mean([f for d, f in pin if p0 + i * pthird <= d <= p0 + (i + 1) * pthird + 1e-12])
+                      for i in range(3)]
+        check(pfn[-1] > 0 and abs(pfn[0]) < 1e-12 and len(pbands) == 3 and
+              pbands[0] < pbands[1] < pbands[2],
+              f"probe.py: force at full depth {pfn[-1]:.4f} N, band means {pbands} N")
 
         r = subprocess.run([args.latency, "--endpoint", ep(p), "--control-endpoint", ep(c),
                             "--seconds", "2", "--csv", os.path.join(tmp, "lat.csv")],
