@@ -584,7 +584,7 @@ int main(int argc, char** argv) {
   double seconds = 60, rate_hz = 1000, max_missed = 0.001;
   int clients = 4;
   long max_growth_kib = 1024;
-  std::string builtin = "cube", profile_csv;
+  std::string builtin = "cube", profile_csv, contact = "surface";
   bool realtime = false, in_process = false, reference_timer = false;
   int client_only = -1;
   bool subscriber_only = false;
@@ -593,6 +593,10 @@ int main(int argc, char** argv) {
   app.add_option("--rate-hz", rate_hz, "server loop rate, Hz")->check(CLI::Range(1.0, 20000.0));
   app.add_option("--builtin", builtin, "built-in scene")
       ->check(CLI::IsMember(conica::net::builtin_scene_names()));
+  app.add_option("--contact", contact,
+                 "the scene's probe contact: surface (the default, a proxy against the surface) "
+                 "or nodes (the node penalty)")
+      ->check(CLI::IsMember({"surface", "nodes"}));
   app.add_option("--max-missed-fraction", max_missed, "goal: missed ticks / ticks (default 0.001)");
   app.add_option("--max-rss-growth-kib", max_growth_kib, "goal: VmRSS growth, KiB (default 1024)");
   app.add_flag("--realtime", realtime, "let the loop try SCHED_FIFO and mlockall");
@@ -649,6 +653,8 @@ int main(int argc, char** argv) {
   conica::net::Server server(ctx, opt);
   conica::BodySpec spec;
   std::string err = conica::net::builtin_scene(builtin, 1.0 / rate_hz, &spec);
+  for (conica::ProbeSpec& p : spec.probes)
+    p.contact = contact == "nodes" ? conica::ContactModel::kNodes : conica::ContactModel::kSurface;
   if (err.empty()) err = server.load(spec);
   // The client processes start (exec, libraries, ZeroMQ context) before the loop does, so that
   // their start-up costs no ticks; each says "ready" and waits for the endpoints on its stdin.

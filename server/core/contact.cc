@@ -834,6 +834,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   ToolContact c;
   Vec3 at = start;
   tool_contact(m, k, R, at, x, cand, nc, &c);
+  int evaluations = 1;  // of the layer in this Newton solve (kProxyMaxEvaluations)
   // One update sinks the tool by at most kProxyDepthRate R further into the surface it sees: a
   // device that jumps deep is followed over a few ticks instead of striking the surface at once.
   const double g_limit = std::min(g_stop, c.depth + kProxyDepthRate * R);
@@ -864,8 +865,9 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   };
   // Newton on Phi from `at` (c: the layer at `at`).
   auto newton = [&](Vec3& at, ToolContact& c) {
+    evaluations = 1;  // the bound is per solve (friction's slip passes solve again)
     double phi = 0.5 * kvc * (at - target).squaredNorm() + c.energy + extra_energy(at);
-    for (int it = 0; it < 16; ++it) {
+    for (int it = 0; it < 16 && evaluations < kProxyMaxEvaluations; ++it) {
       const Vec3 grad = kvc * (at - target) - c.force + kt * (P * (at - xs)) + kb * (at - z);
       if (grad.norm() <= 1e-14 * (kvc * R)) break;
       // Newton on the exact Hessian where it is positive definite, else on its positive part.
@@ -891,9 +893,10 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
       Vec3 next = at;
       double phi_next = phi;
       bool accepted = false;
-      for (int ls = 0; ls < 20; ++ls) {
+      for (int ls = 0; ls < 20 && evaluations < kProxyMaxEvaluations; ++ls) {
         next = at + alpha * dx;
         tool_contact(m, k, R, next, x, cand, nc, &trial);
+        ++evaluations;
         phi_next = 0.5 * kvc * (next - target).squaredNorm() + trial.energy + extra_energy(next);
         const bool shallow = trial.depth < g_limit || trial.depth <= c.depth;
         if (shallow && phi_next <= phi + 1e-4 * alpha * grad.dot(dx)) {

@@ -79,6 +79,11 @@ inline constexpr double kCandidateSkin = 0.5;
 // shallower than the depth limit, is taken without a line search (without evaluating the layer
 // again): the proxy follows a device that moves a little per tick at one layer evaluation.
 inline constexpr double kProxyTrustStep = 0.005;
+// A proxy's Newton solve evaluates the layer at most this many times (iterations and their line
+// searches together) and then keeps the best iterate it has: a device that jumps far along the
+// surface is followed over some ticks instead of one tick spending hundreds of evaluations on
+// steps the depth rate refuses.
+inline constexpr int kProxyMaxEvaluations = 24;
 
 // The surface triangles near one tool, the proxy's broad phase (a Verlet list). A pass over the
 // whole surface lists the triangles whose bounding sphere (centroid, largest centroid-vertex
