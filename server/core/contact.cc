@@ -251,6 +251,24 @@ void disc_triangle(const Vec3 Q[3], const Vec3& n, double a, double scale, Add&&
   }
 }
 
+// A convex polygon inside triangle (p0, p1, p2) of `area` (m^2), corners L[0..n) in barycentric
+// coordinates: split from its first corner into triangles that each get Dunavant's rule.
+template <typename Acc>
+void fan_triangle_rule(const Vec3* L, int n, const Vec3& p0, const Vec3& p1, const Vec3& p2,
+                       double area, Acc& acc) {
+  for (int q = 1; q + 1 < n; ++q) {
+    const Vec3 e1 = L[q] - L[0], e2 = L[q + 1] - L[0];
+    const double frac = std::abs(e1[1] * e2[2] - e1[2] * e2[1]);  // sub-area / triangle area
+    if (!(frac > 0)) continue;
+    for (int k = 0; k < 6; ++k) {
+      const Vec3 l =
+          kTriPoints[k][0] * L[0] + kTriPoints[k][1] * L[q] + kTriPoints[k][2] * L[q + 1];
+      const double lw[3] = {l[0], l[1], l[2]};
+      acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, lw, area * frac * kTriW[k]);
+    }
+  }
+}
+
 // The sphere (centre c, radius R) against triangle (p0, p1, p2): the integral over the part of
 // the triangle inside the ball, the disc the ball cuts from the triangle's plane.
 void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator<SphereTool>& acc) {
@@ -277,14 +295,11 @@ void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator
     // the rim, which is what makes this small (not so for a punch, whose rim carries its full
     // pressure). Continuous as the tool moves: the polygon's corners move continuously.
     const double a2 = a * a;
-    double L[6][3];
+    Vec3 L[6];
     int np = 0;
     for (int i = 0; i < 3; ++i) {
       const int j = (i + 1) % 3;
-      if (Q[i].squaredNorm() < a2) {
-        L[np][0] = L[np][1] = L[np][2] = 0;
-        L[np++][i] = 1;
-      }
+      if (Q[i].squaredNorm() < a2) L[np++] = Vec3::Unit(i);
       // |Q_i + t D|^2 = a^2, roots in (0, 1) in order along the edge.
       const Vec3 D = Q[j] - Q[i];
       const double qa = D.squaredNorm(), qb = Q[i].dot(D), qc = Q[i].squaredNorm() - a2;
@@ -292,26 +307,9 @@ void sphere_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator
       if (!(qa > 0) || !(disc >= 0)) continue;
       const double sq = std::sqrt(disc);
       for (double t : {(-qb - sq) / qa, (-qb + sq) / qa})
-        if (t > 0 && t < 1) {
-          L[np][0] = L[np][1] = L[np][2] = 0;
-          L[np][i] = 1 - t;
-          L[np++][j] = t;
-        }
+        if (t > 0 && t < 1) L[np++] = (1 - t) * Vec3::Unit(i) + t * Vec3::Unit(j);
     }
-    const double area = 0.5 * area2;
-    for (int q = 1; q + 1 < np; ++q) {
-      const double u1 = L[q][1] - L[0][1], u2 = L[q][2] - L[0][2];
-      const double v1 = L[q + 1][1] - L[0][1], v2 = L[q + 1][2] - L[0][2];
-      const double frac = std::abs(u1 * v2 - u2 * v1);  // sub-area / triangle area
-      if (!(frac > 0)) continue;
-      for (int k = 0; k < 6; ++k) {
-        double l[3];
-        for (int d = 0; d < 3; ++d)
-          l[d] = kTriPoints[k][0] * L[0][d] + kTriPoints[k][1] * L[q][d] +
-                 kTriPoints[k][2] * L[q + 1][d];
-        acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, l, area * frac * kTriW[k]);
-      }
-    }
+    fan_triangle_rule(L, np, p0, p1, p2, 0.5 * area2, acc);
   } else {
     disc_triangle(Q, n, a, 1.0, [&](const double* l, double w) {
       acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, l, w);
@@ -369,17 +367,7 @@ void plane_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2, Accumulator<
     }
   }
   if (n < 3) return;
-  for (int q = 1; q + 1 < n; ++q) {
-    const Vec3 e1 = L[q] - L[0], e2 = L[q + 1] - L[0];
-    const double frac = std::abs(e1[1] * e2[2] - e1[2] * e2[1]);  // sub-area / triangle area
-    if (!(frac > 0)) continue;
-    for (int k = 0; k < 6; ++k) {
-      const Vec3 l =
-          kTriPoints[k][0] * L[0] + kTriPoints[k][1] * L[q] + kTriPoints[k][2] * L[q + 1];
-      const double lw[3] = {l[0], l[1], l[2]};
-      acc.add(l[0] * p0 + l[1] * p1 + l[2] * p2, lw, area * frac * kTriW[k]);
-    }
-  }
+  fan_triangle_rule(L, n, p0, p1, p2, area, acc);
   if (acc.touched) acc.depth = std::max({acc.depth, g[0], g[1], g[2]});
   acc.flush();
 }

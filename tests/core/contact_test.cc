@@ -161,52 +161,44 @@ double FlatFaceForce(const ContactLayer& layer, double R, double D) {
   return F;
 }
 
-TEST(ToolContactTest, SphereOnAFlatFaceMatchesTheAxisymmetricIntegralWhereverItSits) {
-  // Nodes held at rest: the top face is flat, cut into triangles of 5 mm lattice cells. Radii
-  // from a tenth of the spacing to twice it; positions at a node, an edge, a face centre and in
-  // between.
-  for (double R : {0.1 * kSpacing, 0.25 * kSpacing, 0.5 * kSpacing, kSpacing, 2 * kSpacing}) {
-    const Model m = Block(R);
-    const ContactLayer layer = contact_layer(m, 0, R);
-    for (double D : {0.02 * R, 0.1 * R, 0.15 * R}) {
-      const double expect = FlatFaceForce(layer, R, D);
-      for (const Vec3& at : {Vec3(0.02, 0.02, 0), Vec3(0.0225, 0.02, 0), Vec3(0.0225, 0.0225, 0),
-                             Vec3(0.0213, 0.0241, 0), Vec3(0.0219, 0.0201, 0)}) {
-        ToolContact c;
-        tool_contact(m, 0, R, at + Vec3(0, 0, kTop + R - D), m.rest, nullptr, 0, &c);
-        // Within 0.2 % wherever the ball sits: the Gauss rules' error, far below a node-spacing
-        // ripple.
-        EXPECT_NEAR(c.force.z(), expect, 2e-3 * expect)
-            << "R " << R << " D " << D << " at " << at.transpose();
-        EXPECT_NEAR(c.force.head<2>().norm(), 0.0, 2e-3 * expect);
-        EXPECT_NEAR(c.depth, D, 1e-3 * D);
-      }
+// Nodes held at rest: the top face is flat, cut into triangles of 5 mm lattice cells. A sphere of
+// radius R pressed D = f R for each fraction f (those whose contact radius is at most
+// max_contact_radius, m) at a node, an edge, a face centre and in between: within 0.2 % of the
+// axisymmetric integral wherever it sits (the Gauss rules' error, far below a node-spacing
+// ripple).
+void ExpectFlatFaceForceWhereverTheSphereSits(double R, std::initializer_list<double> fractions,
+                                              double max_contact_radius = 1.0) {
+  const Model m = Block(R);
+  const ContactLayer layer = contact_layer(m, 0, R);
+  for (double f : fractions) {
+    const double D = f * R;
+    if (std::sqrt(2 * R * D - D * D) > max_contact_radius) continue;
+    const double expect = FlatFaceForce(layer, R, D);
+    for (const Vec3& at : {Vec3(0.02, 0.02, 0), Vec3(0.0225, 0.02, 0), Vec3(0.0225, 0.0225, 0),
+                           Vec3(0.0213, 0.0241, 0), Vec3(0.0219, 0.0201, 0)}) {
+      ToolContact c;
+      tool_contact(m, 0, R, at + Vec3(0, 0, kTop + R - D), m.rest, nullptr, 0, &c);
+      EXPECT_NEAR(c.force.z(), expect, 2e-3 * expect)
+          << "R " << R << " D " << D << " at " << at.transpose();
+      EXPECT_NEAR(c.force.head<2>().norm(), 0.0, 2e-3 * expect);
+      EXPECT_NEAR(c.depth, D, 1e-3 * D);
     }
   }
 }
 
+TEST(ToolContactTest, SphereOnAFlatFaceMatchesTheAxisymmetricIntegralWhereverItSits) {
+  // Radii from a tenth of the spacing to twice it.
+  for (double R : {0.1 * kSpacing, 0.25 * kSpacing, 0.5 * kSpacing, kSpacing, 2 * kSpacing})
+    ExpectFlatFaceForceWhereverTheSphereSits(R, {0.02, 0.1, 0.15});
+}
+
 // A sphere much larger than the spacing: every triangle the rim crosses is small against the
-// disc, and its arcs are taken as chords (sphere_triangle). Same reference and tolerance.
+// disc, and its arcs are taken as chords (sphere_triangle). Contact radii 12.8-17.4 mm: at least
+// twice the longest edge (the cells' diagonals, 7.1 mm), and inside the 40 mm top face wherever
+// the tool sits.
 TEST(ToolContactTest, LargeSphereOnAFlatFaceMatchesTheAxisymmetricIntegralWhereverItSits) {
-  for (double R : {6 * kSpacing, 8 * kSpacing}) {
-    const Model m = Block(R);
-    const ContactLayer layer = contact_layer(m, 0, R);
-    // Contact radii 12.8-17.4 mm: at least twice the longest edge (the cells' diagonals, 7.1 mm),
-    // and inside the 40 mm top face wherever the tool sits.
-    for (double D : {0.08 * R, 0.1 * R, 0.15 * R}) {
-      if (std::sqrt(2 * R * D - D * D) > 0.0175) continue;
-      const double expect = FlatFaceForce(layer, R, D);
-      for (const Vec3& at : {Vec3(0.02, 0.02, 0), Vec3(0.0225, 0.02, 0), Vec3(0.0225, 0.0225, 0),
-                             Vec3(0.0213, 0.0241, 0), Vec3(0.0219, 0.0201, 0)}) {
-        ToolContact c;
-        tool_contact(m, 0, R, at + Vec3(0, 0, kTop + R - D), m.rest, nullptr, 0, &c);
-        EXPECT_NEAR(c.force.z(), expect, 2e-3 * expect)
-            << "R " << R << " D " << D << " at " << at.transpose();
-        EXPECT_NEAR(c.force.head<2>().norm(), 0.0, 2e-3 * expect);
-        EXPECT_NEAR(c.depth, D, 1e-3 * D);
-      }
-    }
-  }
+  for (double R : {6 * kSpacing, 8 * kSpacing})
+    ExpectFlatFaceForceWhereverTheSphereSits(R, {0.08, 0.1, 0.15}, 0.0175);
 }
 
 TEST(ProxyTest, NeverCrossesTheSurfaceHoweverFarTheDeviceJumps) {

@@ -27,6 +27,7 @@
 #include "app/lab/lab.h"
 #include "core/contact.h"
 #include "core/step.h"
+#include "io/mesh_repair.h"
 #include "io/scene.h"
 #include "lab/calibration.h"
 #include "lab/quasi_static.h"
@@ -97,9 +98,8 @@ bool indent_force(BodySpec spec, double radius, double depth, PunchRule rule, do
 // device's travel less the coupling's stretch, m) and the force (N) at each increment.
 bool sphere_curve(BodySpec spec, double R, double depth, int samples, std::vector<double>* d,
                   std::vector<double>* force, long* nodes, std::string* error) {
-  Vec3 lo = spec.mesh.nodes[0], hi = lo;
-  for (const Vec3& x : spec.mesh.nodes) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
-  const Vec3 top(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), hi.z());
+  const io::BoundingBox box = io::bounding_box(spec.mesh);
+  const Vec3 top(0.5 * (box.min.x() + box.max.x()), 0.5 * (box.min.y() + box.max.y()), box.max.z());
   ProbeSpec probe;
   probe.radius = R;
   probe.contact = ContactModel::kSurface;
