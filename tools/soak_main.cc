@@ -886,8 +886,11 @@ int main(int argc, char** argv) {
   const double p99_worst =
       p99s.empty() ? s.lateness_p99_us : *std::max_element(p99s.begin(), p99s.end());
   std::printf("\nserver: probes %" PRIu64 ", replies sent %" PRIu64 ", dropped %" PRIu64
-              "; step p99 %.0f us\n",
-              s.probes_received, s.replies_sent, s.replies_dropped, s.step_p99_us);
+              ", held %" PRIu64
+              " (past the reply budget); step p50 %.0f us, p99 %.0f us; input "
+              "stage p50 %.0f us, p99 %.0f us\n",
+              s.probes_received, s.replies_sent, s.replies_dropped, s.replies_held, s.step_p50_us,
+              s.step_p99_us, s.input_p50_us, s.input_p99_us);
   // The server keeps percentiles of its last 2048 ticks; sampled every second, these windows
   // cover every tick, so the maximum is the run's and the p50/p99 are medians over the windows.
   std::printf(

@@ -724,7 +724,8 @@ void gather_candidates(const Model& m, const std::vector<Vec3>& x, const Vec3& s
 }  // namespace
 
 void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCandidates* candidates,
-                  ProbeState* p) {
+                  ProbeState* p, int max_evaluations) {
+  p->evaluations = 0;
   p->force.setZero();
   p->stiffness.setZero();
   p->contacts = 0;
@@ -752,6 +753,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   const int nt = static_cast<int>(m.surface.size());
   const bool spec_is_sphere = m.probes[k].shape == ToolShape::kSphere;
   const Vec3* plane = plane_axis(m, k);
+  ToolContact c;  // the layer at the proxy's pose
   // The proxy never moves deeper than this into the surface it sees (the barrier's linear
   // extension starts there).
   const double g_stop = 0.9 * kContactDepthFraction * R;
@@ -794,12 +796,15 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   // Candidates: triangles whose bounding sphere meets the capsule from start to target, widened
   // by the tool's reach.
   const double reach = kCandidateReach * R;
-  if (candidates) {
-    candidates->reserve(m);
-    gather_candidates(m, x, start, target, reach, kCandidateSkin * R, plane, candidates);
-  }
-  const int* cand = candidates ? candidates->triangles.data() : nullptr;
-  const int nc = candidates ? static_cast<int>(candidates->triangles.size()) : nt;
+  const int* cand = nullptr;
+  int nc = nt;
+  if (candidates) candidates->reserve(m);
+  auto gather = [&](const Vec3& from, const Vec3& to) {
+    if (!candidates) return;
+    gather_candidates(m, x, from, to, reach, kCandidateSkin * R, plane, candidates);
+    cand = candidates->triangles.data();
+    nc = static_cast<int>(candidates->triangles.size());
+  };
   // The point riding on the surface nearest y among the listed triangles (triangle, barycentric
   // coordinates, offset in its frame), for the stick point.
   auto attach = [&](const Vec3& y, int* tri, Vec3* bary, Vec3* offset) {
@@ -819,10 +824,87 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     }
     return tmin;
   };
-  ToolContact c;
+  bool landed = false;  // a far jump put down over the target (c: the layer there)
+  if (spec_is_sphere && was_placed && p->bonded.empty() && nt > 0 &&
+      (target - start).norm() > kProxyJump * R) {
+    // A far jump (a device teleported, or clients taking turns with one probe): the sphere is
+    // put down touching the surface over the target (or at the target, if that is free), as a
+    // tool just placed is, and sinks from there at the depth rate, when the move there crosses no
+    // surface; instead of the Newton solve sliding it there step by step (up to max_evaluations
+    // layer evaluations against a long candidate list on every update) while the coupling,
+    // stretched across the jump, pushes the tissue along.
+    // The nearest surface point and the mean normal of the faces that share it (one face, or
+    // those meeting at the edge or vertex it lies on): the side of the surface the target is on.
+    double best = std::numeric_limits<double>::infinity();
+    Vec3 near = target, normal = Vec3::Zero();
+    for (int q = 0; q < nt; ++q) {
+      const auto& f = m.surface[q];
+      Vec3 bary;
+      const Vec3 y = closest_on_triangle(target, x[f[0]], x[f[1]], x[f[2]], &bary);
+      const double d = (y - target).norm();
+      const Vec3 n = (x[f[1]] - x[f[0]]).cross(x[f[2]] - x[f[0]]).normalized();
+      if (d < best - 1e-9 * R) {
+        best = d;
+        near = y;
+        normal = n;
+      } else if (d <= best + 1e-9 * R) {
+        normal += n;
+      }
+    }
+    const double dist = (target - near).norm();
+    if (normal.norm() > 0) normal.normalize();
+    const bool outside = (target - near).dot(normal) >= 0;
+    // Out of the surface: along the normal at the face, or, at an edge or a vertex, straight
+    // from the nearest point (in its normal cone).
+    Vec3 away = normal;
+    if (dist > 1e-9 * R) away = (outside ? 1.0 : -1.0) * (target - near) / dist;
+    Vec3 over = outside && dist >= R ? target : Vec3(near + R * away);
+    // The move goes straight, or, when that crosses the surface (the tool sits in a dent, the
+    // target is past a bulge), through the air: lifted a radius off the surface it leaves,
+    // across, and down onto the target (each leg within the candidates' reach of the move).
+    auto clear_path = [&] {
+      if (first_crossing(start, over) > 1) return true;
+      ToolContact here;  // lifted along its push, or, free, as the target is
+      ++p->evaluations;
+      tool_contact(m, k, R, start, x, cand, nc, &here);
+      const Vec3 up = here.force.norm() > 0 ? Vec3(here.force.normalized()) : away;
+      const Vec3 lift = start + R * up, land = over + R * away;
+      return first_crossing(start, lift) > 1 && first_crossing(lift, land) > 1 &&
+             first_crossing(land, over) > 1;
+    };
+    // Not for a target deep inside (more than a radius under the surface): that is followed at
+    // the depth rate from where the tool is.
+    if ((outside || dist <= R) && (over - start).norm() > kProxyJump * R) {
+      gather(start, over);
+      if (clear_path()) {
+        ToolContact there;
+        ++p->evaluations;
+        tool_contact(m, k, R, over, x, cand, nc, &there);
+        // Touching other faces than the nearest one (in a corner, a dent): backed off along
+        // their push once.
+        if (there.depth > kProxyDepthRate * R && there.force.norm() > 0) {
+          const Vec3 back = over + there.depth * there.force.normalized();
+          if (first_crossing(over, back) > 1) {
+            over = back;
+            ++p->evaluations;
+            tool_contact(m, k, R, over, x, cand, nc, &there);
+          }
+        }
+        if (there.depth <= kProxyDepthRate * R) {
+          start = over;
+          c = there;
+          landed = true;
+        }
+      }
+    }
+  }
+  gather(start, target);
   Vec3 at = start;
-  tool_contact(m, k, R, at, x, cand, nc, &c);
-  int evaluations = 1;  // of the layer in this Newton solve (kProxyMaxEvaluations)
+  if (!landed) {
+    ++p->evaluations;
+    tool_contact(m, k, R, at, x, cand, nc, &c);
+  }
+  int evaluations = 1;  // of the layer in this Newton solve (max_evaluations)
   // One update sinks the tool by at most kProxyDepthRate R further into the surface it sees: a
   // device that jumps deep is followed over a few ticks instead of striking the surface at once.
   const double g_limit = std::min(g_stop, c.depth + kProxyDepthRate * R);
@@ -855,7 +937,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   auto newton = [&](Vec3& at, ToolContact& c) {
     evaluations = 1;  // the bound is per solve (friction's slip passes solve again)
     double phi = 0.5 * kvc * (at - target).squaredNorm() + c.energy + extra_energy(at);
-    for (int it = 0; it < 16 && evaluations < kProxyMaxEvaluations; ++it) {
+    for (int it = 0; it < 16 && evaluations < max_evaluations; ++it) {
       const Vec3 grad = kvc * (at - target) - c.force + kt * (P * (at - xs)) + kb * (at - z);
       if (grad.norm() <= 1e-14 * (kvc * R)) break;
       // Newton on the exact Hessian where it is positive definite, else on its positive part.
@@ -866,13 +948,27 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
                     : Vec3(-(kvc * Mat3::Identity() - c.stiffness_psd + Hf).ldlt().solve(grad));
       // Converged to round-off: the layer's Gauss sums do not resolve a smaller step or decrease.
       if (dx.norm() <= 1e-10 * R || -grad.dot(dx) <= 1e-13 * std::abs(phi)) break;
+      // The depth rate: a step that would sink the tool further than the update's limit keeps
+      // its move along the surface and sinks only 0.9 of the room left (the depth changes as
+      // minus the move along the layer's outward force to first order), and ends the solve:
+      // the rest of the way is the next update's. Without it the line search halves such a step
+      // once per layer evaluation until the bound ends the solve.
+      bool rate_bound = false;
+      if (c.faces > 0 && c.force.norm() > 0) {
+        const Vec3 n = c.force.normalized();
+        const double room = 0.99 * std::max(0.0, g_limit - c.depth), sink = -n.dot(dx);
+        if (sink > room) {
+          dx += (sink - room) * n;
+          rate_bound = true;
+        }
+      }
       const double cross = first_crossing(at, at + dx);
       if (cross <= 1) dx *= 0.9 * cross;
       // A small step (a device that moved a little since the last tick) is taken as it is: the
       // quadratic model is exact to O(|dx|^2) there, and the layer is evaluated once per update.
       // Not with friction, whose slip needs the normal force at the step's end.
       if (!(P.squaredNorm() > 0) && dx.norm() <= kProxyTrustStep * R &&
-          c.depth + dx.norm() < g_limit) {
+          (rate_bound || c.depth + dx.norm() < g_limit)) {
         at += dx;
         break;
       }
@@ -881,8 +977,9 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
       Vec3 next = at;
       double phi_next = phi;
       bool accepted = false;
-      for (int ls = 0; ls < 20 && evaluations < kProxyMaxEvaluations; ++ls) {
+      for (int ls = 0; ls < kProxyLineSearch && evaluations < max_evaluations; ++ls) {
         next = at + alpha * dx;
+        ++p->evaluations;
         tool_contact(m, k, R, next, x, cand, nc, &trial);
         ++evaluations;
         phi_next = 0.5 * kvc * (next - target).squaredNorm() + trial.energy + extra_energy(next);
@@ -891,7 +988,16 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
           accepted = true;
           break;
         }
-        alpha *= 0.5;
+        // Too deep: shortened to where the depth meets the limit, the depth taken as changing
+        // with the move along the trial's outward push (exact on a flat face), instead of halving
+        // again and again (a device that jumps into the surface from off it).
+        const double sink = trial.force.norm() > 0 ? -trial.force.normalized().dot(dx) : 0;
+        if (!shallow && sink > 0) {
+          const double back = (trial.depth - 0.99 * g_limit) / sink;
+          alpha = std::clamp(alpha - back, 0.05 * alpha, 0.5 * alpha);
+        } else {
+          alpha *= 0.5;
+        }
       }
       if (!accepted) break;
       const double moved = (next - at).norm();
@@ -961,6 +1067,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   // it is relative to the proxy (the first time), and its bonded area grows to that share.
   if (m.probes[k].bonded && c.faces > 0) {
     ToolContact cover;
+    ++p->evaluations;
     tool_contact(m, k, R, at, x, cand, nc, &cover, nullptr, nullptr, kToolForceOnly,
                  p->covered.data());
     for (int q = 0; q < nc; ++q)

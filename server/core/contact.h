@@ -84,6 +84,19 @@ inline constexpr double kProxyTrustStep = 0.005;
 // surface is followed over some ticks instead of one tick spending hundreds of evaluations on
 // steps the depth rate refuses.
 inline constexpr int kProxyMaxEvaluations = 24;
+// A proxy's line search shortens a Newton step at most this many times; a step that still
+// fails (it leaves the tool deeper than it may go, however short, or does not lower the energy)
+// ends the solve, and the next update goes on from there.
+inline constexpr int kProxyLineSearch = 6;
+// A reply to a probe update between ticks (probe_contact) moves the proxy with at most this many
+// layer evaluations per solve, the tick's proxy stage with kProxyMaxEvaluations: a device that
+// moves a little per update needs one or two, and one whose proxy cannot follow (a far jump into
+// a dent of a crumpled surface) gets a proxy on its way, which the tick's stage carries on.
+inline constexpr int kReplyMaxEvaluations = 6;
+// A sphere's proxy that would move farther than this multiple of its radius in one update, to a
+// target near the surface, is put down touching the surface over the target (or at the target,
+// if free), if the move crosses no surface (update_proxy): a far jump at two layer evaluations.
+inline constexpr double kProxyJump = 1.0;
 
 // The surface triangles near one tool, the proxy's broad phase (a Verlet list). A pass over the
 // whole surface lists the triangles whose bounding sphere (centroid, largest centroid-vertex
@@ -206,9 +219,11 @@ void tool_contact(const Model& model, int probe, double radius, const Vec3& pose
 // anchor, with the nodes held at x. `candidates` (reserved for the model, so nothing is
 // allocated; one per probe keeps its list between updates) is left holding in
 // candidates->triangles the triangles within reach of the tool, what the step's contact stage
-// then evaluates; nullptr: every triangle is tested (slower, same result).
+// then evaluates; nullptr: every triangle is tested (slower, same result). Each Newton solve of
+// the proxy evaluates the layer at most `max_evaluations` times.
 void update_proxy(const Model& model, int k, const std::vector<Vec3>& x,
-                  ContactCandidates* candidates, ProbeState* probe);
+                  ContactCandidates* candidates, ProbeState* probe,
+                  int max_evaluations = kProxyMaxEvaluations);
 
 // The proxy stage for a proxy held where it is (the multi-rate body, whose proxy the 1 kHz tick
 // solved against the body's predicted positions; ProbeSpec::hold_proxy): fills the candidates

@@ -291,7 +291,7 @@ void probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3
   probe->active = true;
   if (radius > 0) probe->radius = radius;
   if (m.probes[k].contact == ContactModel::kSurface)
-    update_proxy(m, k, x, candidates, probe);
+    update_proxy(m, k, x, candidates, probe, kReplyMaxEvaluations);
   else
     node_probe_contact(m, x, k, center, probe);
 }

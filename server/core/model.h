@@ -234,6 +234,7 @@ struct ProbeState {
   bool proxy_placed = false;           // false until the first update after activation
   Vec3 proxy_velocity = Vec3::Zero();  // m/s, the proxy's move in its last update / dt
   double depth = 0;                 // m, deepest penetration of the tool into the deformed surface
+  int evaluations = 0;              // of the contact layer in the last proxy update (its cost)
   int anchor = -1;                  // surface triangle nearest the proxy (-1: none in reach)
   Vec3 anchor_bary = Vec3::Zero();  // barycentric coordinates of the nearest point on it
   Vec3 anchor_offset = Vec3::Zero();  // proxy - that point in the triangle's frame (its two edge

@@ -284,7 +284,8 @@ bool node_contact(const Vec3& x, const Vec3& normal, const Vec3& c, double R, do
 // proxy stage, moving probe->proxy) at the device target `center` (m) with a sphere or punch
 // of radius `radius` (m; <= 0: the probe's): moves probe->proxy and fills probe->force (on the
 // device), stiffness and contacts against node positions x, without touching the nodes. What the
-// server answers a probe update with between ticks. `candidates` as in update_proxy.
+// server answers a probe update with between ticks (the proxy moved with at most
+// kReplyMaxEvaluations layer evaluations per solve). `candidates` as in update_proxy.
 void probe_contact(const Model& model, const std::vector<Vec3>& x, int k, const Vec3& center,
                    double radius, ProbeState* probe, ContactCandidates* candidates = nullptr);
 

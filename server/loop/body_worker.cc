@@ -149,7 +149,7 @@ void BodyWorker::contact(const Model& served, const State& s, int k, const Vec3&
   probe->center = center;
   probe->active = true;
   if (radius > 0) probe->radius = radius;
-  update_proxy(served, k, s.x, &surface_.candidates[k], probe);
+  update_proxy(served, k, s.x, &surface_.candidates[k], probe, kReplyMaxEvaluations);
 }
 
 }  // namespace conica::loop

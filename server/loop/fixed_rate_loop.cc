@@ -40,6 +40,14 @@ PrepareOptions FixedRateLoop::prepare_options() const {
 void FixedRateLoop::install(std::unique_ptr<Scene> scene) {
   retired_.reset();
   scene_ = std::move(scene);
+  scene_installed();
+}
+
+void FixedRateLoop::scene_installed() {
+  solved_at_.assign(scene_ ? scene_->state.probes.size() : 0, Vec3::Zero());
+  if (scene_)
+    for (std::size_t k = 0; k < solved_at_.size(); ++k)
+      solved_at_[k] = scene_->state.probes[k].center;
 }
 
 void FixedRateLoop::run(Clock& clock, Transport& transport, const std::atomic<bool>& stop) {
@@ -59,6 +67,9 @@ void FixedRateLoop::begin(Clock& clock, Transport& transport, const std::atomic<
   stats_.rate_hz = opt_.rate_hz;
   for (RollingWindow* w : {&lateness_, &input_, &stepping_, &publish_}) w->clear();
   period_ns_ = static_cast<TimeNs>(std::llround(1e9 / opt_.rate_hz));
+  reply_budget_ns_ = static_cast<TimeNs>(std::llround(opt_.reply_budget * period_ns_));
+  reply_spent_ns_ = 0;
+  scene_installed();
   set_positions_rate(opt_.positions_hz);
   next_ = clock.now_ns() + period_ns_;
 }
@@ -82,6 +93,10 @@ bool FixedRateLoop::tick() {
       step(*s.model, s.state, *s.workspace);
   }
   const TimeNs t_step = clock_->now_ns();
+  // The step solved every probe's contact at its target: what a held reply answers with.
+  if (!paused_)
+    for (std::size_t k = 0; k < solved_at_.size(); ++k) solved_at_[k] = s.state.probes[k].center;
+  reply_spent_ns_ = 0;
   ++stats_.ticks;
   StateFrame frame{s.model.get(), &s.state, &stats_, false};
   transport_->publish(frame);
@@ -152,16 +167,25 @@ void FixedRateLoop::answer_probe(const Route& route, const ProbeUpdate& u) {
   ProbeState& ps = s.state.probes[u.probe_id];
   if (u.radius > 0) ps.radius = u.radius;
   set_probe(s.state, u.probe_id, u.position, true);
-  if (s.body_worker)
-    s.body_worker->contact(*s.model, s.state, u.probe_id, u.position, ps.radius, &ps);
-  else
-    opt_.contact(*s.model, s.state, u.probe_id, u.position, ps.radius, &ps);
+  // Paused, no step follows that the budget would keep on time.
+  const bool held = !paused_ && reply_spent_ns_ >= reply_budget_ns_;
+  if (held) {
+    ++stats_.replies_held;  // the last solved contact; the step takes the pose as its target
+  } else {
+    if (s.body_worker)
+      s.body_worker->contact(*s.model, s.state, u.probe_id, u.position, ps.radius, &ps);
+    else
+      opt_.contact(*s.model, s.state, u.probe_id, u.position, ps.radius, &ps);
+    solved_at_[u.probe_id] = u.position;
+  }
   ForceReply reply;
   reply.update = u;
   reply.probe = ps;
+  reply.probe.center = solved_at_[u.probe_id];
   reply.tick = s.state.tick;
   reply.recv_ns = recv;
   reply.reply_ns = clock_->now_ns();
+  if (!held) reply_spent_ns_ += reply.reply_ns - recv;
   const bool sent = transport_->reply(route, reply);
   sent ? ++stats_.replies_sent : ++stats_.replies_dropped;
 }
@@ -200,6 +224,7 @@ void FixedRateLoop::apply(const Route& route, const ControlRequest& request) {
     }
   } else if (std::holds_alternative<Reset>(c)) {
     reset_scene(&s);
+    scene_installed();
     control_.message = "reset to the rest state";
   } else if (std::holds_alternative<Pause>(c)) {
     paused_ = true;
@@ -258,6 +283,7 @@ void FixedRateLoop::swap_prepared_scene() {
   if (control_.ok) {
     retired_ = std::move(scene_);  // destroyed on the next preparation's worker
     scene_ = std::move(r.scene);
+    scene_installed();  // allocates: the control path
     char text[96];
     std::snprintf(text, sizeof(text), "loaded %d nodes, step %.1f us", scene_->model->num_nodes(),
                   scene_->step_us);

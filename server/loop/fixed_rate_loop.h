@@ -9,10 +9,13 @@
 // that, the deadlines that are gone are skipped and counted as missed, dt stays fixed.
 //
 // A probe update is answered at once with the contact force at its pose against the current node
-// positions (options.contact); the next tick integrates with it. Every control request is
-// answered with the statistics, LoadScene when its scene is swapped in or refused: it is loaded
-// and prepared on a worker thread (ScenePreparer) while the loop keeps ticking. Bad messages are
-// answered with a Rejection, counted by kind, and change neither the rate nor the state.
+// positions (options.contact); the next tick integrates with it. Those solves are bounded between
+// two ticks (options.reply_budget): past the budget an update is answered with its probe's last
+// solved contact and the position it belongs to, and its pose is the next tick's target. Every
+// control request is answered with the statistics, LoadScene when its scene is swapped in or
+// refused: it is loaded and prepared on a worker thread (ScenePreparer) while the loop keeps
+// ticking. Bad messages are answered with a Rejection, counted by kind, and change neither the rate
+// nor the state.
 //
 // In the tick path nothing allocates, logs or does I/O except through the Transport and the
 // Observer; the control path (commands other than probe updates) may allocate.
@@ -21,6 +24,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "loop/clock.h"
 #include "loop/messages.h"
@@ -44,7 +48,15 @@ struct LoopOptions {
   // The last stretch before a deadline is slept in Clock::sleep_until instead of polling the
   // transport (0: poll up to the deadline, e.g. for a transport that spins).
   TimeNs final_sleep_ns = 20'000;
-  int input_budget = 128;    // messages taken in a tick's input stage
+  int input_budget = 128;  // messages taken in a tick's input stage
+  // The time replies may spend solving contact between two ticks (the serve stretch and the input
+  // stage together), as a fraction of the period. Past it, a probe update is answered with its
+  // probe's last solved force and stiffness and the position they belong to (ForceReply's
+  // position, which a client's local model extrapolates from; counted as replies_held), and its
+  // pose becomes the target of the next tick's step. A flood of far-jumping surface-probe updates
+  // then costs a tick at most this, plus the one reply that crossed it. A client updating once per
+  // tick is never held, nor is any update while the loop is paused (no step to keep on time).
+  double reply_budget = 0.25;
   PrepareOptions prepare;    // for LoadScene (its rate_hz is this rate_hz)
   SceneLoader scene_loader;  // LoadScene: unset, refused
   ContactFn contact = &core_probe_contact;
@@ -88,6 +100,7 @@ class FixedRateLoop {
   void serve_until(TimeNs deadline);
   void handle(const Incoming& in);
   void answer_probe(const Route& route, const ProbeUpdate& update);
+  void scene_installed();
   void reject(const Route& route, const Rejection& why);
   void apply(const Route& route, const ControlRequest& request);
   void finish_control(const Route& route, ControlResult* result);
@@ -112,6 +125,8 @@ class FixedRateLoop {
   TimeNs period_ns_ = 1'000'000, next_ = 0;
   std::uint64_t positions_every_ = 0;  // ticks between positions frames (0: never)
   bool paused_ = false;
+  TimeNs reply_budget_ns_ = 0, reply_spent_ns_ = 0;  // solving replies since the last tick
+  std::vector<Vec3> solved_at_;  // per probe: the position its force and stiffness belong to
   RollingWindow lateness_, input_, stepping_, publish_;
   LoopStats stats_;
 };

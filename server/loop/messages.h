@@ -132,6 +132,9 @@ struct LoopStats {
   double input_p50_us = 0, input_p99_us = 0;      // a tick's input stage (messages, replies)
   double publish_p50_us = 0, publish_p99_us = 0;  // a tick's publish stage (state frames)
   std::uint64_t errors = 0, probes_received = 0, replies_sent = 0, replies_dropped = 0;
+  // Replies past the loop's reply budget (LoopOptions::reply_budget): the probe's last solved
+  // contact, with the position it belongs to, instead of a new solve.
+  std::uint64_t replies_held = 0;
   std::array<std::uint64_t, kNumErrorCodes> errors_by_code{};
   bool paused = false;
   std::uint32_t window = 0;  // ticks the percentiles describe

@@ -152,6 +152,7 @@ void encode_stats(const LoopStatsData& s, const Counters& c, v1::LoopStats* out)
   out->set_probes_received(s.probes_received);
   out->set_replies_sent(s.replies_sent);
   out->set_replies_dropped(s.replies_dropped);
+  out->set_replies_held(s.replies_held);
   out->set_paused(s.paused);
   out->set_window(s.window);
   auto* codes = out->mutable_errors_by_code();

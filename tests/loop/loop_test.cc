@@ -222,6 +222,56 @@ TEST_F(LoopTest, ProbeUpdateIsAnsweredAtOnceWithTheCoreForceAndStepsTheBody) {
   EXPECT_EQ(loop_->stats().replies_sent, 1u);
 }
 
+// A contact stage that takes a fifth of a period on the loop's clock and answers a force that
+// names the position it was solved at (x component, in N per mm).
+ManualClock* slow_contact_clock = nullptr;
+void SlowContact(const Model&, const State&, int, const Vec3& center, double, ProbeState* probe) {
+  slow_contact_clock->advance(kPeriod / 5);
+  probe->force = Vec3(1e3 * center.x(), 0, 1);
+  probe->contacts = 1;
+}
+
+TEST_F(LoopTest, RepliesPastTheBudgetAreHeldWithTheLastSolvedContact) {
+  // Budget a quarter period: the first two solves (0.2 + 0.2 periods) are made, the third update
+  // between the same ticks is answered with the second's force and position, and becomes the
+  // target of the next tick's step; after that tick the budget is whole again.
+  LoopOptions opt;
+  opt.reply_budget = 0.25;
+  opt.contact = &SlowContact;
+  slow_contact_clock = &clock_;
+  Start(opt);
+  const Vec3 a = Pressed(0.004, 0.01, 0.01, 1e-3), b = Pressed(0.006, 0.01, 0.01, 1e-3),
+             c = Pressed(0.008, 0.01, 0.01, 1e-3), d = Pressed(0.012, 0.01, 0.01, 1e-3);
+  transport_.send_probe(At(10.1), 3, Probe(1, a));
+  transport_.send_probe(At(10.2), 3, Probe(2, b));
+  transport_.send_probe(At(10.3), 3, Probe(3, c));
+  transport_.send_probe(At(11.2), 3, Probe(4, d));
+  TickTo(12);
+  const auto replies = Sent<ForceReply>();
+  ASSERT_EQ(replies.size(), 4u);
+  const auto force_x = [&](int k) { return replies[k].second->probe.force.x(); };
+  EXPECT_DOUBLE_EQ(force_x(0), 1e3 * a.x());
+  EXPECT_DOUBLE_EQ(force_x(1), 1e3 * b.x());
+  EXPECT_DOUBLE_EQ(force_x(2), 1e3 * b.x());      // held: the second's contact
+  EXPECT_EQ(replies[2].second->probe.center, b);  // ... at the position it belongs to
+  EXPECT_EQ(replies[2].second->update.sequence, 3u);
+  EXPECT_DOUBLE_EQ(force_x(3), 1e3 * d.x());  // the next tick's budget
+  EXPECT_EQ(replies[3].second->probe.center, d);
+  EXPECT_EQ(loop_->stats().replies_held, 1u);
+  EXPECT_EQ(loop_->stats().replies_sent, 4u);
+  // The held update's position was the target of tick 11.
+  Twin twin(Small());
+  twin.steps(10);
+  set_probe(twin.state, 0, c, true);
+  twin.steps(1);
+  set_probe(twin.state, 0, d, true);
+  twin.steps(1);
+  const MemoryTransport::Frame& last = *ForceFrames().back();
+  ASSERT_EQ(last.tick, 12u);
+  ASSERT_GT(twin.state.probes[0].force.z(), 0);
+  EXPECT_EQ(last.probes[0].force, twin.state.probes[0].force);
+}
+
 TEST_F(LoopTest, CommandsAreAppliedBetweenTicks) {
   LoopOptions opt;
   opt.positions_hz = 100;

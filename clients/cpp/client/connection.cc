@@ -194,8 +194,8 @@ std::string describe_stats(const v1::LoopStats& s) {
                 "  tick lateness  p50 %.1f us  p99 %.1f us  max %.1f us\n"
                 "  step cost      p50 %.1f us  p99 %.1f us  max %.1f us\n"
                 "  input stage    p50 %.1f us  p99 %.1f us; publish p50 %.1f us  p99 %.1f us\n"
-                "  probes received %llu, replies sent %llu, dropped %llu, client errors %llu, "
-                "rollbacks %llu",
+                "  probes received %llu, replies sent %llu, dropped %llu, held %llu, client errors "
+                "%llu, rollbacks %llu",
                 static_cast<unsigned long long>(s.ticks()), s.rate_hz(),
                 static_cast<unsigned long long>(s.missed_ticks()), s.window(), s.lateness_p50_us(),
                 s.lateness_p99_us(), s.lateness_max_us(), s.step_p50_us(), s.step_p99_us(),
@@ -203,6 +203,7 @@ std::string describe_stats(const v1::LoopStats& s) {
                 s.publish_p99_us(), static_cast<unsigned long long>(s.probes_received()),
                 static_cast<unsigned long long>(s.replies_sent()),
                 static_cast<unsigned long long>(s.replies_dropped()),
+                static_cast<unsigned long long>(s.replies_held()),
                 static_cast<unsigned long long>(s.errors()),
                 static_cast<unsigned long long>(s.rollbacks()));
   std::string out = buf;
