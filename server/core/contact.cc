@@ -504,12 +504,6 @@ void anchor_proxy(const Model& m, const std::vector<Vec3>& x, const int* list, i
   }
 }
 
-// The device's stiffness dF/dt = k_vc (k_vc I - K)^-1 K: the coupling k_vc in series with the
-// proxy's contact stiffness K, nodes held.
-Mat3 coupled_stiffness(double kvc, const Mat3& K) {
-  return kvc * (kvc * Mat3::Identity() - K).inverse() * K;
-}
-
 }  // namespace
 
 double probe_radius(const Model& m, int k, const ProbeState& p) {
@@ -519,6 +513,34 @@ double probe_radius(const Model& m, int k, const ProbeState& p) {
 double coupling_stiffness(const Model& m, int k, double R) {
   const double kvc = m.probes[k].coupling;
   return kvc > 0 ? kvc : kCouplingFactor * m.contact_modulus * R;
+}
+
+Coupling coupling(const Model& m, int k, double R) {
+  return Coupling{coupling_stiffness(m, k, R), kCouplingReach * R};
+}
+
+double Coupling::energy(const Vec3& e) const {
+  const double d = e.norm();
+  return d <= reach ? 0.5 * k * d * d : k * reach * (d - 0.5 * reach);
+}
+
+Vec3 Coupling::force(const Vec3& e) const {
+  const double d = e.norm();
+  return d <= reach ? Vec3(k * e) : Vec3((k * reach / d) * e);
+}
+
+Mat3 Coupling::hessian(const Vec3& e) const {
+  const double d = e.norm();
+  if (d <= reach) return k * Mat3::Identity();
+  const Vec3 u = e / d;
+  return (k * reach / d) * (Mat3::Identity() - u * u.transpose());
+}
+
+Mat3 Coupling::device_stiffness(const Vec3& e, const Mat3& K) const {
+  // Saturated, H has no stiffness along the stretch: a trace of k keeps H - K invertible where
+  // the contact has none either (a frictionless pull along the surface).
+  const Mat3 H = hessian(e) + 1e-9 * k * Mat3::Identity();
+  return H * (H - K).inverse() * K;
 }
 
 bool tool_touches(const Model& m, int k, double R, const Vec3& pose, const std::vector<Vec3>& x,
@@ -746,7 +768,8 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     return;
   }
   const double R = probe_radius(m, k, *p);
-  const double kvc = coupling_stiffness(m, k, R);
+  const Coupling link = coupling(m, k, R);
+  const double kvc = link.k;
   const Vec3 target = p->center;
   const Vec3 last_proxy = p->proxy;
   const bool was_placed = p->proxy_placed;
@@ -936,14 +959,18 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   // Newton on Phi from `at` (c: the layer at `at`).
   auto newton = [&](Vec3& at, ToolContact& c) {
     evaluations = 1;  // the bound is per solve (friction's slip passes solve again)
-    double phi = 0.5 * kvc * (at - target).squaredNorm() + c.energy + extra_energy(at);
+    double phi = link.energy(at - target) + c.energy + extra_energy(at);
     for (int it = 0; it < 16 && evaluations < max_evaluations; ++it) {
-      const Vec3 grad = kvc * (at - target) - c.force + kt * (P * (at - xs)) + kb * (at - z);
+      const Vec3 grad = link.force(at - target) - c.force + kt * (P * (at - xs)) + kb * (at - z);
       if (grad.norm() <= 1e-14 * (kvc * R)) break;
       // Newton on the exact Hessian where it is positive definite, else on its positive part.
       const Mat3 Hf = kt * P + kb * Mat3::Identity();
-      const Eigen::LDLT<Mat3> exact(kvc * Mat3::Identity() - c.stiffness + Hf);
-      Vec3 dx = exact.isPositive() && exact.info() == Eigen::Success
+      // (Saturated, the coupling's Hessian has no stiffness along its stretch; where that
+      // leaves the matrix indefinite, the linear coupling's k_vc I stands in for it.)
+      const Eigen::LDLT<Mat3> exact(link.hessian(at - target) - c.stiffness + Hf);
+      const bool definite =
+          exact.info() == Eigen::Success && exact.vectorD().minCoeff() > 1e-9 * kvc;
+      Vec3 dx = definite
                     ? Vec3(-exact.solve(grad))
                     : Vec3(-(kvc * Mat3::Identity() - c.stiffness_psd + Hf).ldlt().solve(grad));
       // Converged to round-off: the layer's Gauss sums do not resolve a smaller step or decrease.
@@ -982,7 +1009,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
         ++p->evaluations;
         tool_contact(m, k, R, next, x, cand, nc, &trial);
         ++evaluations;
-        phi_next = 0.5 * kvc * (next - target).squaredNorm() + trial.energy + extra_energy(next);
+        phi_next = link.energy(next - target) + trial.energy + extra_energy(next);
         const bool shallow = trial.depth < g_limit || trial.depth <= c.depth;
         if (shallow && phi_next <= phi + 1e-4 * alpha * grad.dot(dx)) {
           accepted = true;
@@ -1055,12 +1082,13 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   p->proxy = at;
   p->depth = c.depth;
   p->contacts = c.faces;
-  p->force = kvc * (at - target);
-  // dF/dt = k_vc (k_vc I - K')^-1 K': the coupling in series with the layer (and, sticking, the
-  // friction spring: K' = K - k_t P; the bonds: K' -= kb I), nodes held.
+  p->force = link.force(at - target);
+  // dF/dt = H (H - K')^-1 K' (H = k_vc I unsaturated): the coupling in series with the layer
+  // (and, sticking, the friction spring: K' = K - k_t P; the bonds: K' -= kb I), nodes held.
   if (c.faces > 0 || kb > 0) {
-    p->stiffness = coupled_stiffness(
-        kvc, c.stiffness - (sticking ? Mat3(kt * P) : Mat3::Zero()) - kb * Mat3::Identity());
+    p->stiffness =
+        link.device_stiffness(at - target, c.stiffness - (sticking ? Mat3(kt * P) : Mat3::Zero()) -
+                                               kb * Mat3::Identity());
   }
   anchor_proxy(m, x, cand, nc, reach, p);
   // A bonded tool glues the surface it now covers: each node with a share of it is bonded where
@@ -1104,13 +1132,13 @@ void hold_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCandid
   const int nc = candidates ? static_cast<int>(candidates->triangles.size()) : nt;
   ToolContact c;
   tool_contact(m, k, R, p->proxy, x, cand, nc, &c, nullptr, nullptr, kToolStiffness);
-  const double kvc = coupling_stiffness(m, k, R);
+  const Coupling link = coupling(m, k, R);
   p->proxy_velocity.setZero();
   p->depth = c.depth;
   p->contacts = c.faces;
-  p->force = kvc * (p->proxy - p->center);
+  p->force = link.force(p->proxy - p->center);
   p->stiffness.setZero();
-  if (c.faces > 0) p->stiffness = coupled_stiffness(kvc, c.stiffness);
+  if (c.faces > 0) p->stiffness = link.device_stiffness(p->proxy - p->center, c.stiffness);
   anchor_proxy(m, x, cand, nc, reach, p);
 }
 

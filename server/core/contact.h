@@ -84,6 +84,10 @@ inline constexpr double kProxyTrustStep = 0.005;
 // surface is followed over some ticks instead of one tick spending hundreds of evaluations on
 // steps the depth rate refuses.
 inline constexpr int kProxyMaxEvaluations = 24;
+// The virtual coupling is linear up to a stretch of this multiple of the tool radius, and pulls
+// with a constant force beyond (Coupling): k_vc R = kCouplingFactor E* R^2, 75 times the force of
+// a Hertz press one radius deep, so a press the proxy follows stays far below it.
+inline constexpr double kCouplingReach = 1.0;
 // A proxy's line search shortens a Newton step at most this many times; a step that still
 // fails (it leaves the tool deeper than it may go, however short, or does not lower the energy)
 // ends the solve, and the next update goes on from there.
@@ -237,6 +241,22 @@ double probe_radius(const Model& model, int k, const ProbeState& probe);
 
 // The virtual coupling of probe k for a tool of radius R (N/m).
 double coupling_stiffness(const Model& model, int probe, double radius);
+
+// The virtual coupling between the device and the proxy, saturated: linear, k (N/m), while it
+// is stretched by at most `reach` (m, kCouplingReach R), then pulling with the constant force
+// k reach along the stretch. A proxy that cannot follow its device (a jump, a dent the tool
+// climbs out of) pushes the tissue with at most that instead of k times the whole lag.
+// e = proxy - device (m).
+struct Coupling {
+  double k = 0, reach = 0;
+  double energy(const Vec3& e) const;  // J
+  Vec3 force(const Vec3& e) const;     // N, on the device (the energy's gradient in the proxy)
+  Mat3 hessian(const Vec3& e) const;   // N/m, the energy's Hessian in the proxy
+  // The device's stiffness d force / d device with the proxy in equilibrium against a contact of
+  // stiffness K (N/m, nodes held): H (H - K)^-1 K, H the Hessian at e.
+  Mat3 device_stiffness(const Vec3& e, const Mat3& K) const;
+};
+Coupling coupling(const Model& model, int probe, double radius);
 
 // True when the tool of probe k (radius R) posed at `pose` overlaps surface triangle t (a
 // sphere: the triangle comes within R of its centre; a punch: within R of its axis, behind its

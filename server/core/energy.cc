@@ -49,8 +49,7 @@ double potential_energy(const Model& m, const State& s) {
     const double R = probe_radius(m, static_cast<int>(q), p);
     tool_contact(m, static_cast<int>(q), R, p.proxy, s.x, nullptr, 0, &c);
     // The layer and the virtual coupling between the device and the proxy.
-    e += c.energy +
-         0.5 * coupling_stiffness(m, static_cast<int>(q), R) * (p.proxy - p.center).squaredNorm();
+    e += c.energy + coupling(m, static_cast<int>(q), R).energy(p.proxy - p.center);
   }
   for (size_t q = 0; q < m.planes.size(); ++q) {
     const PlaneState& pl = s.planes[q];

@@ -355,6 +355,53 @@ TEST(ProxyTest, DeviceStiffnessMatchesFiniteDifferencesOfTheProxySolve) {
     }
 }
 
+TEST(ProxyTest, CouplingSaturatesAtItsReachWithAConsistentStiffness) {
+  // A bonded tool (its nodes held by the bonds' springs) and the device moved 3 R sideways: the
+  // coupling is stretched past its reach (kCouplingReach R) and pulls with k_vc R, no more; the
+  // proxy is in equilibrium with the layer and the bonds, and the device's stiffness is the
+  // finite difference of the proxy solve's force.
+  const double R = 1.3 * kSpacing;
+  Model m = Block(R);
+  m.probes[0].bonded = true;
+  const std::vector<Vec3> x = Jiggled(m, 0.1 * kSpacing, 9);
+  State s = make_state(m);
+  const Vec3 t0(0.0213, 0.0187, kTop + R - 0.15 * R);
+  ProbeState p0 = s.probes[0];
+  p0.active = true;
+  p0.center = t0;
+  for (int k = 0; k < 100; ++k) update_proxy(m, 0, x, nullptr, &p0);
+  ASSERT_GT(p0.contacts, 0);
+  const Vec3 t = t0 + Vec3(3 * R, 0, 0);
+  for (int k = 1; k <= 60; ++k) {
+    p0.center = t0 + (std::min(k, 30) / 30.0) * (t - t0);
+    update_proxy(m, 0, x, nullptr, &p0);
+  }
+  const Coupling link = coupling(m, 0, R);
+  const double stretch = (p0.proxy - t).norm();
+  std::printf("stretch %.2f R, device force %.4f N (k_vc R %.4f N)\n", stretch / R, p0.force.norm(),
+              link.k * R);
+  ASSERT_GT(stretch, kCouplingReach * R);
+  EXPECT_NEAR(p0.force.norm(), link.k * kCouplingReach * R, 1e-12 * link.k * R);
+  // (The stiffness along the stretch is small, ~3 N/m of 72: a step of 1e-5 R moves the force by
+  // 4e-7 of itself, the proxy solve's round-off; 1e-3 R and 1e-4 R agree to six digits.)
+  const double h = 1e-4 * R;
+  for (int a = 0; a < 3; ++a) {
+    ProbeState pp = p0, pm = p0;
+    pp.center = t + h * Vec3::Unit(a);
+    pm.center = t - h * Vec3::Unit(a);
+    update_proxy(m, 0, x, nullptr, &pp);
+    update_proxy(m, 0, x, nullptr, &pm);
+    const Vec3 fd = (pp.force - pm.force) / (2 * h);
+    EXPECT_NEAR((fd - p0.stiffness.col(a)).norm(), 0.0, 2e-3 * p0.stiffness.norm()) << a;
+  }
+  ToolContact c;
+  tool_contact(m, 0, R, p0.proxy, x, nullptr, 0, &c);
+  Vec3 pull = Vec3::Zero();
+  for (int i : p0.bonded)
+    pull += contact_layer(m, 0, R).k * p0.bond_area[i] * (x[i] - p0.bond[i] - p0.proxy);
+  EXPECT_NEAR((c.force + pull - p0.force).norm(), 0.0, 1e-4 * (c.force.norm() + pull.norm()));
+}
+
 }  // namespace
 }  // namespace conica
 
