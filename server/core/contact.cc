@@ -976,9 +976,9 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
       // Converged to round-off: the layer's Gauss sums do not resolve a smaller step or decrease.
       if (dx.norm() <= 1e-10 * R || -grad.dot(dx) <= 1e-13 * std::abs(phi)) break;
       // The depth rate: a step that would sink the tool further than the update's limit keeps
-      // its move along the surface and sinks only 0.9 of the room left (the depth changes as
-      // minus the move along the layer's outward force to first order), and ends the solve:
-      // the rest of the way is the next update's. Without it the line search halves such a step
+      // its move along the surface and sinks only to the limit (0.99 of the room left; the
+      // depth changes as minus the move along the layer's outward force to first order), the
+      // rest of the way being the next update's. Without it the line search halves such a step
       // once per layer evaluation until the bound ends the solve.
       bool rate_bound = false;
       if (c.faces > 0 && c.force.norm() > 0) {
