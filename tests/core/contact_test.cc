@@ -13,6 +13,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "core/body.h"
 #include "core/step.h"
@@ -317,6 +319,36 @@ TEST(ProxyTest, ToolPlacedInsideTheBodyStartsOnTheNearestSurface) {
   EXPECT_LT(p.depth, kContactDepthFraction * R);
 }
 
+// The device's stiffness p0.stiffness against central differences (step h, m) of the proxy
+// solve's force about the device target t, nodes held at x.
+void ExpectStiffnessIsTheProxySolvesDifference(const Model& m, const std::vector<Vec3>& x,
+                                               const ProbeState& p0, const Vec3& t, double h,
+                                               const std::string& label) {
+  for (int a = 0; a < 3; ++a) {
+    ProbeState pp = p0, pm = p0;
+    pp.center = t + h * Vec3::Unit(a);
+    pm.center = t - h * Vec3::Unit(a);
+    update_proxy(m, 0, x, nullptr, &pp);
+    update_proxy(m, 0, x, nullptr, &pm);
+    const Vec3 fd = (pp.force - pm.force) / (2 * h);
+    EXPECT_NEAR((fd - p0.stiffness.col(a)).norm(), 0.0, 2e-3 * p0.stiffness.norm())
+        << label << " axis " << a;
+  }
+}
+
+// The coupling force balances the layer's force on the proxy and the bonds' pull, to the Gauss
+// rules' accuracy (the line search stops where the energy's and the force's quadratures part,
+// ~1e-4).
+void ExpectProxyInEquilibrium(const Model& m, const std::vector<Vec3>& x, double R,
+                              const ProbeState& p0) {
+  ToolContact c;
+  tool_contact(m, 0, R, p0.proxy, x, nullptr, 0, &c);
+  Vec3 pull = Vec3::Zero();
+  for (int i : p0.bonded)
+    pull += contact_layer(m, 0, R).k * p0.bond_area[i] * (x[i] - p0.bond[i] - p0.proxy);
+  EXPECT_NEAR((c.force + pull - p0.force).norm(), 0.0, 1e-4 * (c.force.norm() + pull.norm()));
+}
+
 TEST(ProxyTest, DeviceStiffnessMatchesFiniteDifferencesOfTheProxySolve) {
   // Frictionless, and bonded (the bonds' springs in series with the coupling as well).
   for (bool bonded : {false, true})
@@ -332,26 +364,9 @@ TEST(ProxyTest, DeviceStiffnessMatchesFiniteDifferencesOfTheProxySolve) {
       for (int k = 0; k < 100; ++k) update_proxy(m, 0, x, nullptr, &p0);
       ASSERT_GT(p0.contacts, 0);
       EXPECT_EQ(p0.bonded.empty(), !bonded);
-      const double h = 1e-5 * R;
-      for (int a = 0; a < 3; ++a) {
-        ProbeState pp = p0, pm = p0;
-        pp.center = t + h * Vec3::Unit(a);
-        pm.center = t - h * Vec3::Unit(a);
-        update_proxy(m, 0, x, nullptr, &pp);
-        update_proxy(m, 0, x, nullptr, &pm);
-        const Vec3 fd = (pp.force - pm.force) / (2 * h);
-        EXPECT_NEAR((fd - p0.stiffness.col(a)).norm(), 0.0, 2e-3 * p0.stiffness.norm())
-            << "R " << R << " axis " << a << (bonded ? " bonded" : "");
-      }
-      // The coupling force balances the layer's force on the proxy and the bonds' pull, to the
-      // Gauss rules' accuracy (the line search stops where the energy's and the force's
-      // quadratures part, ~1e-4).
-      ToolContact c;
-      tool_contact(m, 0, R, p0.proxy, x, nullptr, 0, &c);
-      Vec3 pull = Vec3::Zero();
-      for (int i : p0.bonded)
-        pull += contact_layer(m, 0, R).k * p0.bond_area[i] * (x[i] - p0.bond[i] - p0.proxy);
-      EXPECT_NEAR((c.force + pull - p0.force).norm(), 0.0, 1e-4 * (c.force.norm() + pull.norm()));
+      ExpectStiffnessIsTheProxySolvesDifference(
+          m, x, p0, t, 1e-5 * R, "R " + std::to_string(R) + (bonded ? " bonded" : ""));
+      ExpectProxyInEquilibrium(m, x, R, p0);
     }
 }
 
@@ -384,22 +399,8 @@ TEST(ProxyTest, CouplingSaturatesAtItsReachWithAConsistentStiffness) {
   EXPECT_NEAR(p0.force.norm(), link.k * kCouplingReach * R, 1e-12 * link.k * R);
   // (The stiffness along the stretch is small, ~3 N/m of 72: a step of 1e-5 R moves the force by
   // 4e-7 of itself, the proxy solve's round-off; 1e-3 R and 1e-4 R agree to six digits.)
-  const double h = 1e-4 * R;
-  for (int a = 0; a < 3; ++a) {
-    ProbeState pp = p0, pm = p0;
-    pp.center = t + h * Vec3::Unit(a);
-    pm.center = t - h * Vec3::Unit(a);
-    update_proxy(m, 0, x, nullptr, &pp);
-    update_proxy(m, 0, x, nullptr, &pm);
-    const Vec3 fd = (pp.force - pm.force) / (2 * h);
-    EXPECT_NEAR((fd - p0.stiffness.col(a)).norm(), 0.0, 2e-3 * p0.stiffness.norm()) << a;
-  }
-  ToolContact c;
-  tool_contact(m, 0, R, p0.proxy, x, nullptr, 0, &c);
-  Vec3 pull = Vec3::Zero();
-  for (int i : p0.bonded)
-    pull += contact_layer(m, 0, R).k * p0.bond_area[i] * (x[i] - p0.bond[i] - p0.proxy);
-  EXPECT_NEAR((c.force + pull - p0.force).norm(), 0.0, 1e-4 * (c.force.norm() + pull.norm()));
+  ExpectStiffnessIsTheProxySolvesDifference(m, x, p0, t, 1e-4 * R, "saturated");
+  ExpectProxyInEquilibrium(m, x, R, p0);
 }
 
 }  // namespace
