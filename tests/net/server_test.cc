@@ -476,6 +476,15 @@ TEST(ServerLatencyTest, LoopbackRoundTripsAreAnsweredBetweenTicks) {
   ASSERT_EQ(server.load(spec), "");
   ASSERT_EQ(server.start(), "");
   Client c(ctx, server.endpoints().probe);
+  // The first update puts the probe 1 mm inside the resting cube: its coupling kicks the surface,
+  // which rings and can leave the probe for a few ticks. The round trips are sampled once the press
+  // has settled (200 ticks).
+  unsigned warmup = 0;
+  const std::uint64_t start = mono_ns();
+  while (c.probe(1000 + warmup++, Pressed(1e-3)).tick() < 200) {
+    ASSERT_LT(mono_ns() - start, 10'000'000'000ull) << "the loop did not reach tick 200 in 10 s";
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
   std::vector<double> rtt;
   for (int k = 0; k < 500; ++k) {
     const std::uint64_t t0 = mono_ns();
@@ -495,8 +504,8 @@ TEST(ServerLatencyTest, LoopbackRoundTripsAreAnsweredBetweenTicks) {
   EXPECT_LT(p50, 5000);
   server.stop();  // the final statistics snapshot
   const LoopStatsData s = server.stats();
-  EXPECT_EQ(s.probes_received, 500u);
-  EXPECT_EQ(s.replies_sent, 500u);
+  EXPECT_EQ(s.probes_received, 500u + warmup);
+  EXPECT_EQ(s.replies_sent, 500u + warmup);
 }
 
 }  // namespace
