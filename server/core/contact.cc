@@ -847,6 +847,17 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     }
     return tmin;
   };
+  // The layer's faces integrated by this update, summed over its evaluations (kProxyFaceBudget).
+  int faces_spent = 0;
+  auto evaluate = [&](const Vec3& pose, ToolContact* out) {
+    ++p->evaluations;
+    tool_contact(m, k, R, pose, x, cand, nc, out);
+    faces_spent += out->faces;
+  };
+  // Another evaluation fits the update's face budget (the first kProxyMinEvaluations always do).
+  auto affordable = [&] {
+    return p->evaluations < kProxyMinEvaluations || faces_spent < kProxyFaceBudget;
+  };
   bool landed = false;  // a far jump put down over the target (c: the layer there)
   if (spec_is_sphere && was_placed && p->bonded.empty() && nt > 0 &&
       (target - start).norm() > kProxyJump * R) {
@@ -888,8 +899,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     auto clear_path = [&] {
       if (first_crossing(start, over) > 1) return true;
       ToolContact here;  // lifted along its push, or, free, as the target is
-      ++p->evaluations;
-      tool_contact(m, k, R, start, x, cand, nc, &here);
+      evaluate(start, &here);
       const Vec3 up = here.force.norm() > 0 ? Vec3(here.force.normalized()) : away;
       const Vec3 lift = start + R * up, land = over + R * away;
       return first_crossing(start, lift) > 1 && first_crossing(lift, land) > 1 &&
@@ -901,16 +911,14 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
       gather(start, over);
       if (clear_path()) {
         ToolContact there;
-        ++p->evaluations;
-        tool_contact(m, k, R, over, x, cand, nc, &there);
+        evaluate(over, &there);
         // Touching other faces than the nearest one (in a corner, a dent): backed off along
         // their push once.
         if (there.depth > kProxyDepthRate * R && there.force.norm() > 0) {
           const Vec3 back = over + there.depth * there.force.normalized();
           if (first_crossing(over, back) > 1) {
             over = back;
-            ++p->evaluations;
-            tool_contact(m, k, R, over, x, cand, nc, &there);
+            evaluate(over, &there);
           }
         }
         if (there.depth <= kProxyDepthRate * R) {
@@ -923,10 +931,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   }
   gather(start, target);
   Vec3 at = start;
-  if (!landed) {
-    ++p->evaluations;
-    tool_contact(m, k, R, at, x, cand, nc, &c);
-  }
+  if (!landed) evaluate(at, &c);
   int evaluations = 1;  // of the layer in this Newton solve (max_evaluations)
   // One update sinks the tool by at most kProxyDepthRate R further into the surface it sees: a
   // device that jumps deep is followed over a few ticks instead of striking the surface at once.
@@ -960,7 +965,7 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
   auto newton = [&](Vec3& at, ToolContact& c) {
     evaluations = 1;  // the bound is per solve (friction's slip passes solve again)
     double phi = link.energy(at - target) + c.energy + extra_energy(at);
-    for (int it = 0; it < 16 && evaluations < max_evaluations; ++it) {
+    for (int it = 0; it < 16 && evaluations < max_evaluations && affordable(); ++it) {
       const Vec3 grad = link.force(at - target) - c.force + kt * (P * (at - xs)) + kb * (at - z);
       if (grad.norm() <= 1e-14 * (kvc * R)) break;
       // Newton on the exact Hessian where it is positive definite, else on its positive part.
@@ -1004,10 +1009,10 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
       Vec3 next = at;
       double phi_next = phi;
       bool accepted = false;
-      for (int ls = 0; ls < kProxyLineSearch && evaluations < max_evaluations; ++ls) {
+      for (int ls = 0; ls < kProxyLineSearch && evaluations < max_evaluations && affordable();
+           ++ls) {
         next = at + alpha * dx;
-        ++p->evaluations;
-        tool_contact(m, k, R, next, x, cand, nc, &trial);
+        evaluate(next, &trial);
         ++evaluations;
         phi_next = link.energy(next - target) + trial.energy + extra_energy(next);
         const bool shallow = trial.depth < g_limit || trial.depth <= c.depth;
@@ -1078,7 +1083,12 @@ void update_proxy(const Model& m, int k, const std::vector<Vec3>& x, ContactCand
     p->stick = -1;
     p->friction_limit = 0;
   }
-  p->proxy_velocity = was_placed ? Vec3((at - last_proxy) / m.options.dt) : Vec3::Zero();
+  // The proxy's velocity, the contact stage's reference for the layer's damping (nodes moving with
+  // the tool are not damped): zero after a jump (a tool just placed, a far jump put down, a move of
+  // more than kProxyJump R in one update), which is a teleport, not a motion; taken as one, it
+  // would drag the nodes under the tool at metres per second.
+  const bool jumped = !was_placed || landed || (at - last_proxy).norm() > kProxyJump * R;
+  p->proxy_velocity = jumped ? Vec3::Zero() : Vec3((at - last_proxy) / m.options.dt);
   p->proxy = at;
   p->depth = c.depth;
   p->contacts = c.faces;

@@ -84,6 +84,14 @@ inline constexpr double kProxyTrustStep = 0.005;
 // surface is followed over some ticks instead of one tick spending hundreds of evaluations on
 // steps the depth rate refuses.
 inline constexpr int kProxyMaxEvaluations = 24;
+// An evaluation costs in proportion to the faces the tool touches (each one's overlap is
+// integrated): past its first kProxyMinEvaluations, an update evaluates the layer again only while
+// the faces it has integrated, summed over its evaluations, stay under kProxyFaceBudget, and keeps
+// its best iterate otherwise. A tool on a few faces keeps the kProxyMaxEvaluations bound; one that
+// crushes the surface under it (tens of faces) is followed over some ticks instead of one tick
+// integrating hundreds of faces (about 2.5 us each on this project's 2-core machine).
+inline constexpr int kProxyFaceBudget = 96;
+inline constexpr int kProxyMinEvaluations = 4;
 // The virtual coupling is linear up to a stretch of this multiple of the tool radius, and pulls
 // with a constant force beyond (Coupling): k_vc R = kCouplingFactor E* R^2, 75 times the force of
 // a Hertz press one radius deep, so a press the proxy follows stays far below it.
@@ -224,7 +232,8 @@ void tool_contact(const Model& model, int probe, double radius, const Vec3& pose
 // allocated; one per probe keeps its list between updates) is left holding in
 // candidates->triangles the triangles within reach of the tool, what the step's contact stage
 // then evaluates; nullptr: every triangle is tested (slower, same result). Each Newton solve of
-// the proxy evaluates the layer at most `max_evaluations` times.
+// the proxy evaluates the layer at most `max_evaluations` times, and the update as a whole within
+// kProxyFaceBudget.
 void update_proxy(const Model& model, int k, const std::vector<Vec3>& x,
                   ContactCandidates* candidates, ProbeState* probe,
                   int max_evaluations = kProxyMaxEvaluations);

@@ -414,6 +414,54 @@ namespace {
 // its height, then held for 1 s. The node contact lets such a probe sink to half the body's
 // thickness with no force; through the surface and its proxy it is felt from the start and
 // never passes through.
+TEST(ProxyTest, UpdateOfAToolOnManyFacesStaysWithinItsFaceBudgetAndSettlesOverTicks) {
+  // A sphere of three spacings seated in a dent of its own shape in the top face (nodes held),
+  // touching tens of faces, and the device pressed 0.1 R deeper and a little sideways in one
+  // update: the depth rate and the line search take the Newton solve there all its
+  // kProxyMaxEvaluations evaluations, about 1,000 face integrals, without the face budget. Each
+  // update stops within the face budget (core/contact.h, kProxyFaceBudget) and keeps its best
+  // iterate; the updates that follow carry it to its equilibrium.
+  const double R = 3 * kSpacing;
+  const Model m = Block(R);
+  State s = make_state(m);
+  const Vec3 seat(0.02, 0.02, kTop + R - 5e-3);  // the sphere's centre, 5 mm into the rest face
+  for (int i = 0; i < m.num_nodes(); ++i) {
+    const Vec3& r = m.rest[i];
+    const double d2 = (r - seat).head<2>().squaredNorm();
+    if (r.z() > kTop - 1e-9 && d2 < R * R)
+      s.x[i].z() = std::min(r.z(), seat.z() - std::sqrt(R * R - d2) + 1e-5);
+  }
+  ContactCandidates cand(m);
+  ProbeState& p = s.probes[0];
+  set_probe(s, 0, seat + Vec3(0, 0, R));
+  update_proxy(m, 0, s.x, &cand, &p);
+  set_probe(s, 0, seat);
+  for (int k = 0; k < 400; ++k) update_proxy(m, 0, s.x, &cand, &p);
+  ASSERT_GE(p.contacts, kProxyFaceBudget / kProxyMinEvaluations) << "the seated sphere's faces";
+  const ProbeState seated = p;
+  const Vec3 target = seat + Vec3(0.1 * R, 0.01 * R, -0.1 * R);
+  set_probe(s, 0, target);
+  update_proxy(m, 0, s.x, &cand, &p);
+  std::printf("%d faces seated; the move: %d layer evaluations, %d faces at its end\n",
+              seated.contacts, p.evaluations, p.contacts);
+  // Every evaluation integrates at least kProxyFaceBudget / kProxyMinEvaluations faces here.
+  EXPECT_LE(p.evaluations, kProxyMinEvaluations);
+  EXPECT_TRUE(p.force.allFinite() && p.stiffness.allFinite());
+  int updates = 1;
+  for (; updates < 400; ++updates) {
+    const Vec3 before = p.proxy;
+    update_proxy(m, 0, s.x, &cand, &p);
+    if ((p.proxy - before).norm() <= 1e-12 * R) break;
+  }
+  std::printf("settled in %d updates: proxy (%.5f %.5f %.5f), %.3g mm deep\n", updates, p.proxy.x(),
+              p.proxy.y(), p.proxy.z(), 1e3 * p.depth);
+  ExpectProxyInEquilibrium(m, s.x, R, p);
+  EXPECT_LT(updates, 100);
+  EXPECT_GT(p.contacts, 0);
+  EXPECT_GT(p.force.z(), 0);
+  EXPECT_LT(p.force.x(), 0);  // the dent's wall holds it back
+}
+
 TEST(SurfaceContactTest, SmallProbeAtAFaceCentreIsFeltFromTheStartAndHoldsSteady) {
   for (Integrator integ : {Integrator::kImplicitEuler, Integrator::kSymplecticEuler}) {
     SpringCard c;

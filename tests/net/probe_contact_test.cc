@@ -50,6 +50,33 @@ TEST(ProbeContactTest, MatchesTheStepContactStage) {
   }
 }
 
+// A probe 10 mm above the built-in cube moved to 0.05 mm into its top face in one update (the
+// server's reply to it held past its budget, so the tick's proxy stage makes the jump): the proxy
+// is put down on the surface, and the layer's damping must not take the 10 mm jump for the tool's
+// velocity (10 m/s, which dragged the top face 14 mm down in 20 ticks and left the probe inside
+// the body with no force).
+TEST(ProbeContactTest, ProbeThatJumpsOntoTheSurfaceDoesNotDragTheTissueAlong) {
+  const Model m = Cube();
+  State s = make_state(m);
+  Workspace ws(m);
+  const double x0 = 3 * 0.04 / 7, top = 0.04, R = m.probes[0].radius;
+  set_probe(s, 0, Vec3(x0, x0, top + R + 0.01));
+  step(m, s, ws);
+  EXPECT_EQ(s.probes[0].contacts, 0);
+  set_probe(s, 0, Vec3(x0, x0, top + R - 5e-5));
+  step(m, s, ws);
+  EXPECT_EQ(s.probes[0].proxy_velocity, Vec3::Zero());  // a jump, not a motion
+  for (int k = 1; k < 20; ++k) step(m, s, ws);
+  double column_top = 0;  // of the lattice column under the probe
+  for (int i = 0; i < m.num_nodes(); ++i)
+    if ((m.rest[i].head<2>() - Vec3(x0, x0, 0).head<2>()).norm() < 1e-9)
+      column_top = std::max(column_top, s.x[i].z());
+  // Pressed 0.05 mm: the surface under it moves by no more than that.
+  EXPECT_GT(column_top, top - 5e-5) << "the top face was dragged down";
+  EXPECT_GT(s.probes[0].contacts, 0);
+  EXPECT_GT(s.probes[0].force.z(), 0);
+}
+
 TEST(ProbeContactTest, NodeAtTheExactCentreIsBounded) {
   const Model m = Cube();
   State s = make_state(m);
