@@ -108,10 +108,6 @@ class FaultTest : public ::testing::Test {
     server_ = std::make_unique<Server>(ctx_, opt);
     BodySpec cube;
     ASSERT_EQ(builtin_scene("cube", 1e-3, &cube), "");
-    // The node probe: these tests are the transport's faults (floods, kills, churn), and a flood
-    // of updates each jumping a surface probe's proxy costs the loop more than its tick under the
-    // sanitizers (docs/reliability.md, "Soak").
-    for (ProbeSpec& p : cube.probes) p.contact = ContactModel::kNodes;
     ASSERT_EQ(server_->load(spec ? *spec : cube), "");
     ASSERT_EQ(server_->start(), "");
   }
