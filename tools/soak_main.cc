@@ -203,9 +203,12 @@ std::optional<v1::ServerMessage> recv_one(zmq::socket_t& s, int timeout_ms) {
   return out;
 }
 
-// One churning client: sessions until `end` or `stop`.
+// A probe id no scene of the soak has (more than --clients allows).
+constexpr std::uint32_t kUnknownProbe = 100000;
+
+// One churning client: sessions until `end` or `stop`, moving probe `probe_id`.
 void churn(zmq::context_t& ctx, const conica::net::Endpoints& ep, Vec3 lo, Vec3 hi, int id,
-           Clock::time_point end, const std::atomic<bool>& stop, Tally& t) {
+           std::uint32_t probe_id, Clock::time_point end, const std::atomic<bool>& stop, Tally& t) {
   std::mt19937_64 rng(1234 + id);
   std::uniform_real_distribution<double> u(0, 1);
   std::uint64_t seq = 0;
@@ -229,12 +232,12 @@ void churn(zmq::context_t& ctx, const conica::net::Endpoints& ep, Vec3 lo, Vec3 
           if (r == 0) bytes = std::string("\xff\x01garbage", 9);
           if (r == 1) {
             v1::ClientMessage m;
-            m.ParseFromString(probe_bytes(seq, c0));
+            m.ParseFromString(probe_bytes(seq, c0, probe_id));
             m.set_protocol_version(99);
             bytes = m.SerializeAsString();
           }
-          if (r == 2) bytes = probe_bytes(seq, Vec3(nan, 0, 0));
-          if (r == 3) bytes = probe_bytes(seq, c0, 5);
+          if (r == 2) bytes = probe_bytes(seq, Vec3(nan, 0, 0), probe_id);
+          if (r == 3) bytes = probe_bytes(seq, c0, kUnknownProbe);
           if (r == 4) {
             v1::ClientMessage m;
             m.set_protocol_version(1);
@@ -246,7 +249,7 @@ void churn(zmq::context_t& ctx, const conica::net::Endpoints& ep, Vec3 lo, Vec3 
         default: {
           // Down into the body and back along a slow sine, 2 mm deep at most.
           const double depth = 2e-3 * std::sin(0.3 * static_cast<double>(k));
-          bytes = probe_bytes(seq, c0 + Vec3(0, 0, 5e-3 - depth));
+          bytes = probe_bytes(seq, c0 + Vec3(0, 0, 5e-3 - depth), probe_id);
           bad = false;
         }
       }
@@ -311,7 +314,7 @@ void subscribe(zmq::context_t& ctx, const std::string& endpoint, Clock::time_poi
 // comma-separated), runs for `seconds` from then and reports its tally on stdout. SIGINT/SIGTERM
 // end it early (a watcher thread takes them; the others keep them blocked, so that no ZeroMQ call
 // is interrupted).
-int run_child(int client_index, double seconds) {
+int run_child(int client_index, double seconds, std::uint32_t probe_id) {
   sigset_t stop_signals;
   sigemptyset(&stop_signals);
   sigaddset(&stop_signals, SIGINT);
@@ -347,8 +350,8 @@ int run_child(int client_index, double seconds) {
     const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                         std::chrono::duration<double>(seconds));
     if (client_index >= 0)
-      churn(ctx, ep, Vec3(b[0], b[1], b[2]), Vec3(b[3], b[4], b[5]), client_index, end, stop,
-            tally);
+      churn(ctx, ep, Vec3(b[0], b[1], b[2]), Vec3(b[3], b[4], b[5]), client_index, probe_id, end,
+            stop, tally);
     else
       subscribe(ctx, ep.state, end, stop, tally);
   }
@@ -585,8 +588,8 @@ int main(int argc, char** argv) {
   int clients = 4;
   long max_growth_kib = 1024;
   std::string builtin = "cube", profile_csv, contact = "surface";
-  bool realtime = false, in_process = false, reference_timer = false;
-  int client_only = -1;
+  bool realtime = false, in_process = false, reference_timer = false, probe_per_client = false;
+  int client_only = -1, probe_id = 0;
   bool subscriber_only = false;
   app.add_option("--seconds", seconds, "run time, s")->check(CLI::Range(1.0, 1e6));
   app.add_option("--clients", clients, "churning clients")->check(CLI::Range(1, 256));
@@ -599,6 +602,9 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"surface", "nodes"}));
   app.add_option("--max-missed-fraction", max_missed, "goal: missed ticks / ticks (default 0.001)");
   app.add_option("--max-rss-growth-kib", max_growth_kib, "goal: VmRSS growth, KiB (default 1024)");
+  app.add_flag("--probe-per-client", probe_per_client,
+               "give each client a probe of its own (probe id = client index; the scene's probe "
+               "copied), as devices have, instead of all of them moving probe 0");
   app.add_flag("--realtime", realtime, "let the loop try SCHED_FIFO and mlockall");
   app.add_flag("--in-process", in_process,
                "run the clients as threads of the server's process (their memory and CPU then "
@@ -611,9 +617,11 @@ int main(int argc, char** argv) {
   // Hidden: the child processes' modes.
   app.add_option("--client-only", client_only, "run one churning client (index)")->group("");
   app.add_flag("--subscriber-only", subscriber_only, "run the state subscriber")->group("");
+  app.add_option("--probe-id", probe_id, "the client's probe")->group("");
   CLI11_PARSE(app, argc, argv);
   if (client_only >= 0 || subscriber_only)
-    return run_child(subscriber_only ? -1 : client_only, seconds);
+    return run_child(subscriber_only ? -1 : client_only, seconds,
+                     static_cast<std::uint32_t>(std::max(0, probe_id)));
   spdlog::set_level(spdlog::level::warn);
 
   // SIGINT/SIGTERM are taken by the main thread (sigtimedwait) so that the children can be ended
@@ -655,6 +663,7 @@ int main(int argc, char** argv) {
   std::string err = conica::net::builtin_scene(builtin, 1.0 / rate_hz, &spec);
   for (conica::ProbeSpec& p : spec.probes)
     p.contact = contact == "nodes" ? conica::ContactModel::kNodes : conica::ContactModel::kSurface;
+  if (probe_per_client && err.empty()) spec.probes.resize(clients, spec.probes.front());
   if (err.empty()) err = server.load(spec);
   // The client processes start (exec, libraries, ZeroMQ context) before the loop does, so that
   // their start-up costs no ticks; each says "ready" and waits for the endpoints on its stdin.
@@ -669,6 +678,8 @@ int main(int argc, char** argv) {
       } else {
         args.push_back("--client-only");
         args.push_back(std::to_string(k));
+        args.push_back("--probe-id");
+        args.push_back(std::to_string(probe_per_client ? k : 0));
       }
       children.push_back(spawn_self(args));
       if (children.back().pid < 0)
@@ -701,7 +712,8 @@ int main(int argc, char** argv) {
   std::vector<std::thread> threads;
   if (in_process) {
     for (int k = 0; k < clients; ++k)
-      threads.emplace_back([&, k] { churn(ctx, ep, lo, hi, k, end, stop, tally); });
+      threads.emplace_back(
+          [&, k] { churn(ctx, ep, lo, hi, k, probe_per_client ? k : 0, end, stop, tally); });
     threads.emplace_back([&] { subscribe(ctx, ep.state, end, stop, tally); });
   } else {
     char line[1024];
