@@ -403,17 +403,6 @@ TEST(ProxyTest, CouplingSaturatesAtItsReachWithAConsistentStiffness) {
   ExpectProxyInEquilibrium(m, x, R, p0);
 }
 
-}  // namespace
-}  // namespace conica
-
-namespace conica {
-namespace {
-
-// The paper's cube (configs/paper-cube.pbtxt: 70 x 70 x 40 mm, 10 mm lattice, its conical card)
-// pressed at a face centre by a sphere a quarter of the node spacing across, at 5 mm/s to half
-// its height, then held for 1 s. The node contact lets such a probe sink to half the body's
-// thickness with no force; through the surface and its proxy it is felt from the start and
-// never passes through.
 TEST(ProxyTest, UpdateOfAToolOnManyFacesStaysWithinItsFaceBudgetAndSettlesOverTicks) {
   // A sphere of three spacings seated in a dent of its own shape in the top face (nodes held),
   // touching tens of faces, and the device pressed 0.1 R deeper and a little sideways in one
@@ -444,7 +433,8 @@ TEST(ProxyTest, UpdateOfAToolOnManyFacesStaysWithinItsFaceBudgetAndSettlesOverTi
   update_proxy(m, 0, s.x, &cand, &p);
   std::printf("%d faces seated; the move: %d layer evaluations, %d faces at its end\n",
               seated.contacts, p.evaluations, p.contacts);
-  // Every evaluation integrates at least kProxyFaceBudget / kProxyMinEvaluations faces here.
+  // The tool touches at least kProxyFaceBudget / kProxyMinEvaluations faces seated and at the
+  // move's end (40 and 38 here), so the budget is spent by the kProxyMinEvaluations-th evaluation.
   EXPECT_LE(p.evaluations, kProxyMinEvaluations);
   EXPECT_TRUE(p.force.allFinite() && p.stiffness.allFinite());
   int updates = 1;
@@ -462,6 +452,17 @@ TEST(ProxyTest, UpdateOfAToolOnManyFacesStaysWithinItsFaceBudgetAndSettlesOverTi
   EXPECT_LT(p.force.x(), 0);  // the dent's wall holds it back
 }
 
+}  // namespace
+}  // namespace conica
+
+namespace conica {
+namespace {
+
+// The paper's cube (configs/paper-cube.pbtxt: 70 x 70 x 40 mm, 10 mm lattice, its conical card)
+// pressed at a face centre by a sphere a quarter of the node spacing across, at 5 mm/s to half
+// its height, then held for 1 s. The node contact lets such a probe sink to half the body's
+// thickness with no force; through the surface and its proxy it is felt from the start and
+// never passes through.
 TEST(SurfaceContactTest, SmallProbeAtAFaceCentreIsFeltFromTheStartAndHoldsSteady) {
   for (Integrator integ : {Integrator::kImplicitEuler, Integrator::kSymplecticEuler}) {
     SpringCard c;
