@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdio>
+#include <exception>
 #include <string>
 
 #include "lab_run.h"
@@ -51,7 +52,11 @@ double DragRipple(const std::string& out, const std::string& factor) {
     if (row.find(key) == std::string::npos) continue;
     size_t pos = 0;
     for (int bar = 0; bar < 6; ++bar) pos = row.find('|', pos) + 1;
-    return std::stod(row.substr(pos, row.find('|', pos) - pos));
+    try {
+      return std::stod(row.substr(pos, row.find('|', pos) - pos));
+    } catch (const std::exception&) {
+      return -1;  // "-": a drag that rolled back has no ripple
+    }
   }
   return -1;
 }

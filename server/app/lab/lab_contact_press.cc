@@ -189,10 +189,17 @@ int run_drag(const Opts& o, const std::vector<Scene>& scenes) {
         mean_sd(fx, &mx, &rx);
         const double lo = fz.empty() ? 0 : *std::min_element(fz.begin(), fz.end());
         const double hi = fz.empty() ? 0 : *std::max_element(fz.begin(), fz.end());
-        std::printf("| %s | %.3g | %.3g | %.3g | %.4g | %.3g | %.3g | %.3f | %llu | %.1f |\n",
-                    sc.name.c_str(), R * 1e3, factor, df, mz, mz != 0 ? 100 * (hi - lo) / mz : 0.0,
-                    mx, run.max_penetration / R, static_cast<unsigned long long>(run.rollbacks),
-                    run.seconds);
+        if (run.rollbacks > 0)  // steps that blew up were redone: the drag is not a result
+          std::printf(
+              "| %s | %.3g | %.3g | %.3g | - | - | - | %.3f | %llu (unstable: no result) | %.1f "
+              "|\n",
+              sc.name.c_str(), R * 1e3, factor, df, run.max_penetration / R,
+              static_cast<unsigned long long>(run.rollbacks), run.seconds);
+        else
+          std::printf("| %s | %.3g | %.3g | %.3g | %.4g | %.3g | %.3g | %.3f | 0 | %.1f |\n",
+                      sc.name.c_str(), R * 1e3, factor, df, mz,
+                      mz != 0 ? 100 * (hi - lo) / mz : 0.0, mx, run.max_penetration / R,
+                      run.seconds);
         std::fflush(stdout);
         if (!write_csv(o, "drag-" + sc.name + "-r" + fmt("%g", factor) + "-d" + fmt("%g", df), run))
           return 1;
