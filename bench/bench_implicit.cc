@@ -2,11 +2,16 @@
 // per-step time (p50 / p90 / p99 / max), CG iterations per Newton iteration, factorisations, and
 // the probe force per tick against a converged solve of the same body (RMS and largest relative
 // error over the ticks in contact).
-//   build/bin/bench_implicit [--depth M] [--up x|y|z] [--jacobi-newton N --jacobi-cg N] SCENE
+//   build/bin/bench_implicit [--depth M] [--up x|y|z] [--jacobi-newton N --jacobi-cg N] [--surface]
+//                            [--newton-tolerance M] SCENE
+// --surface: the probe on surface contact (contact SURFACE) whatever the scene says.
+// --newton-tolerance: the stepped variants' Newton cap (m of node motion; 0: every iteration);
+// the reference always takes every iteration.
 // Variants: "block-Jacobi CG" (the scene with LinearSolver::kBlockJacobiCG and the given budgets),
 // "factor CG, inline" (the scene as written, factorisations inside the step that asks),
 // "factor CG, worker" (factorisations on a FactorWorker thread, as conica-server runs it), and the
-// reference: factor CG with 4 Newton iterations to a 1e-12 relative residual.
+// reference: factor CG with 4 Newton iterations (none skipped by the scene's newton_tolerance)
+// to a 1e-12 relative residual.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -122,6 +127,8 @@ void Report(const char* name, const Run& r, const Run& ref) {
 int main(int argc, char** argv) {
   double depth = 0.005;
   int up = 2, jn = -1, jc = -1;
+  bool surface = false;
+  double newton_tolerance = -1;  // the scene's unless given
   std::string path;
   for (int a = 1; a < argc; ++a) {
     const std::string o = argv[a];
@@ -133,16 +140,22 @@ int main(int argc, char** argv) {
       jn = std::atoi(argv[++a]);
     else if (o == "--jacobi-cg" && a + 1 < argc)
       jc = std::atoi(argv[++a]);
+    else if (o == "--newton-tolerance" && a + 1 < argc)
+      newton_tolerance = std::atof(argv[++a]);
+    else if (o == "--surface")
+      surface = true;
     else
       path = o;
   }
   Model m;
-  if (!bench::LoadProbedScene(path, &m)) return 2;
+  if (!bench::LoadProbedScene(path, &m, surface)) return 2;
   m.options.linear_solver = LinearSolver::kFactorCG;
+  if (newton_tolerance >= 0) m.options.newton_tolerance = newton_tolerance;
   Model ref = m;
   ref.options.newton_iterations = 4;
   ref.options.cg_iterations = 200;
   ref.options.cg_tolerance = 1e-12;
+  ref.options.newton_tolerance = 0;  // every Newton iteration, not stopped by a scene's cap
   Model jac = m;
   jac.options.linear_solver = LinearSolver::kBlockJacobiCG;
   if (jn > 0) jac.options.newton_iterations = jn;
