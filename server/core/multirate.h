@@ -31,7 +31,7 @@
 // nodes held; the proxy's next update sees the nodes this tick moved (a one-tick stagger, as in
 // the single-rate step). A fresh model (a body step just handed over, in equilibrium with the
 // proxy its step held) is first solved against the last tick's proxy, then the proxy moves. Each
-// solve stops at 1e-7 R of node motion or after a fixed number of layer evaluations, so the tick
+// solve stops at 1e-4 R of node motion or after a fixed number of layer evaluations, so the tick
 // stays bounded. The body step holds the proxy where the ticks left it (body_model).
 #pragma once
 
