@@ -552,5 +552,30 @@ TEST(LoopAllocationTest, TicksAndProbeRepliesAllocateNothing) {
   loop.end();
 }
 
+// A surface sphere small against the surface's node spacing (5 mm here) is told at load that it
+// will feel the nodes as it slides (docs/contact.md: the drag ripple is within 5 % from 1.6
+// spacings); one of two spacings is not, nor is a node-law probe.
+TEST(SceneNotesTest, ASphereSmallAgainstTheSurfaceSpacingIsToldItWillFeelTheNodes) {
+  auto ripple_notes = [](double radius, ContactModel contact) {
+    BodySpec spec = Small();
+    spec.probes[0].radius = radius;
+    spec.probes[0].contact = contact;
+    PrepareOptions opt;
+    opt.refuse_slow_scene = false;
+    opt.benchmark_steps = 2;
+    Scene scene;
+    EXPECT_EQ(prepare_scene(spec, opt, &scene), "");
+    std::vector<std::string> out;
+    for (const Note& n : scene.notes)
+      if (n.text.find("ripples with the nodes") != std::string::npos) out.push_back(n.text);
+    return out;
+  };
+  const std::vector<std::string> small = ripple_notes(5e-3, ContactModel::kSurface);
+  ASSERT_EQ(small.size(), 1u);
+  EXPECT_NE(small[0].find("5 mm node spacing (R = 1.00 h)"), std::string::npos) << small[0];
+  EXPECT_TRUE(ripple_notes(10e-3, ContactModel::kSurface).empty());
+  EXPECT_TRUE(ripple_notes(5e-3, ContactModel::kNodes).empty());
+}
+
 }  // namespace
 }  // namespace conica::loop
