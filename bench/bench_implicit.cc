@@ -2,9 +2,10 @@
 // per-step time (p50 / p90 / p99 / max), CG iterations per Newton iteration, factorisations, and
 // the probe force per tick against a converged solve of the same body (RMS and largest relative
 // error over the ticks in contact).
-//   build/bin/bench_implicit [--depth M] [--up x|y|z] [--jacobi-newton N --jacobi-cg N] [--surface]
+//   build/bin/bench_implicit [--depth M] [--up x|y|z] [--jacobi-newton N --jacobi-cg N] [--surface
+//   | --nodes]
 //                            [--newton-tolerance M] SCENE
-// --surface: the probe on surface contact (contact SURFACE) whatever the scene says.
+// --surface, --nodes: the probe on surface contact or the node law whatever the scene says.
 // --newton-tolerance: the stepped variants' Newton cap (m of node motion; 0: every iteration);
 // the reference always takes every iteration.
 // Variants: "block-Jacobi CG" (the scene with LinearSolver::kBlockJacobiCG and the given budgets),
@@ -127,7 +128,7 @@ void Report(const char* name, const Run& r, const Run& ref) {
 int main(int argc, char** argv) {
   double depth = 0.005;
   int up = 2, jn = -1, jc = -1;
-  bool surface = false;
+  bench::ProbeContact contact = bench::ProbeContact::kScene;
   double newton_tolerance = -1;  // the scene's unless given
   std::string path;
   for (int a = 1; a < argc; ++a) {
@@ -143,12 +144,14 @@ int main(int argc, char** argv) {
     else if (o == "--newton-tolerance" && a + 1 < argc)
       newton_tolerance = std::atof(argv[++a]);
     else if (o == "--surface")
-      surface = true;
+      contact = bench::ProbeContact::kSurface;
+    else if (o == "--nodes")
+      contact = bench::ProbeContact::kNodes;
     else
       path = o;
   }
   Model m;
-  if (!bench::LoadProbedScene(path, &m, surface)) return 2;
+  if (!bench::LoadProbedScene(path, &m, contact)) return 2;
   m.options.linear_solver = LinearSolver::kFactorCG;
   if (newton_tolerance >= 0) m.options.newton_tolerance = newton_tolerance;
   Model ref = m;

@@ -8,10 +8,10 @@
 //   build/bin/bench_multirate [--depth M] [--up x|y|z] [--steps N] [--body-rate HZ]
 //                             [--newton N] [--newton-tolerance M] [--cg-tolerance T]
 //                             [--refactor-every N] [--refactor-iterations N]
-//                             [--per-tick [--realtime] [--replies]] [--surface] SCENE
-// --surface: the probe on surface contact (contact SURFACE) whatever the scene says. --realtime:
-// the per-tick run paced at 1 kHz instead of waiting for each body step (the body is as late as
-// it is on this machine); --replies: a client's probe reply before each tick, as served.
+//                             [--per-tick [--realtime] [--replies]] [--surface | --nodes] SCENE
+// --surface, --nodes: the probe on surface contact or the node law whatever the scene says.
+// --realtime: the per-tick run paced at 1 kHz instead of waiting for each body step (the body is as
+// late as it is on this machine); --replies: a client's probe reply before each tick, as served.
 // The probe touches the node highest along `up` (the middle one of a flat top) and is pressed
 // `depth` over the first half of the steps, then held.
 #include <algorithm>
@@ -157,7 +157,8 @@ int main(int argc, char** argv) {
   double depth = 0.004;
   double body_rate = 0, cg_tolerance = 0, newton_tolerance = -1;  // the scene's unless given
   int refactor_every = -1, refactor_iterations = -1, newton = 0;
-  bool per_tick = false, realtime = false, replies = false, surface = false;
+  bool per_tick = false, realtime = false, replies = false;
+  bench::ProbeContact contact = bench::ProbeContact::kScene;
   int up = 2, steps = 40;
   std::string path;
   for (int a = 1; a < argc; ++a) {
@@ -175,7 +176,9 @@ int main(int argc, char** argv) {
     else if (o == "--replies")
       replies = true;
     else if (o == "--surface")
-      surface = true;
+      contact = bench::ProbeContact::kSurface;
+    else if (o == "--nodes")
+      contact = bench::ProbeContact::kNodes;
     else if (o == "--newton" && a + 1 < argc)
       newton = std::atoi(argv[++a]);
     else if (o == "--newton-tolerance" && a + 1 < argc)
@@ -192,7 +195,7 @@ int main(int argc, char** argv) {
       path = o;
   }
   Model served;
-  if (!bench::LoadProbedScene(path, &served, surface)) return 2;
+  if (!bench::LoadProbedScene(path, &served, contact)) return 2;
   if (body_rate > 0) served.options.body_rate_hz = body_rate;
   if (cg_tolerance > 0) served.options.cg_tolerance = cg_tolerance;
   if (newton > 0) served.options.newton_iterations = newton;

@@ -15,17 +15,19 @@ namespace conica::bench {
 
 // The scene at `path` built into *m; false (the reason on stderr) when it cannot be read or built
 // or has no probe.
-// `surface`: every probe takes contact SURFACE (its stiffness from the tissue), whatever the
-// scene says.
-inline bool LoadProbedScene(const std::string& path, Model* m, bool surface = false) {
+// `contact`: every probe takes this contact model (its stiffness the default: from the tissue, or
+// for the node law from the masses and the step), whatever the scene says; kScene: the scene's.
+enum class ProbeContact { kScene, kSurface, kNodes };
+inline bool LoadProbedScene(const std::string& path, Model* m,
+                            ProbeContact contact = ProbeContact::kScene) {
   BodySpec spec;
   if (std::string e = io::load_scene(path, &spec); !e.empty()) {
     std::fprintf(stderr, "%s\n", e.c_str());
     return false;
   }
-  if (surface)
+  if (contact != ProbeContact::kScene)
     for (ProbeSpec& p : spec.probes) {
-      p.contact = ContactModel::kSurface;
+      p.contact = contact == ProbeContact::kSurface ? ContactModel::kSurface : ContactModel::kNodes;
       p.stiffness = 0;
     }
   if (std::string e = build_model(spec, m); !e.empty() || m->probes.empty()) {

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The liver by hand (docs/contact.md): serves the two livers with surface contact
-# (configs/liver.pbtxt, and configs/liver-ef30.pbtxt, the calibrated liver served multi-rate, whose
-# probe asks for the node law: served from a copy with `contact: SURFACE`) and drives each, in real
+# (configs/liver.pbtxt, and configs/liver-ef30.pbtxt, the calibrated liver served multi-rate; each
+# from a copy whose probe block says `contact: SURFACE`, whatever the config says) and drives each, in real
 # time at 1 kHz with conica-probe, with a sphere of the scene's radius (10 mm) and a 2 mm one:
 #   approach from 1 mm off the rest surface, press 5 mm along the surface normal at 10 mm/s, hold
 #   2 s, drag 20 mm along the surface at the held depth at 10 mm/s, lift off.
@@ -157,7 +157,7 @@ PY
 #    dent) and drive it.
 for scene in "${scenes[@]}"; do
   base=$(basename "$scene" .pbtxt)
-  copy="$(dirname "$scene")/.by-hand-$base.pbtxt"
+  copy="$(dirname "$scene")/.by-hand-$$-$base.pbtxt"  # next to it, for the mesh path
   copies+=("$copy")
   sed -E -e '/^probe \{/s/ contact: [A-Z_]+//' -e 's/^(probe \{[^}]*)\}/\1contact: SURFACE }/' "$scene" >"$copy"
   grep -q '^probe {.*contact: SURFACE' "$copy" || { echo "$scene: no one-line probe block to switch" >&2; exit 2; }

@@ -341,7 +341,8 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   constexpr int kMaxNewton = 20;
   // Surface contact: at most this many layer evaluations per solve of (1) (each one integrates
   // the layer over the tool's candidate triangles, tens of microseconds), so a tick stays bounded
-  // where Newton is slow; the solve then ends on the best iterate found. 8 rather than 16: the
+  // where Newton is slow; the solve then ends on the best iterate found (one more evaluation
+  // restores that iterate's forces when the last backtracking fails). 8 rather than 16: the
   // phantom's per-tick bench (1e-4 R tolerance) tick CPU p99 / max 579-601 / 1,552-1,583 us ->
   // 355-435 / 608-655 us, per-tick RMS against the body solved every tick 0.795 -> 0.817 %.
   constexpr int kMaxLayerEvaluations = 8;
@@ -487,7 +488,8 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // coupling, which the region's last few digits barely move: on the phantom's press-hold-slide
   // (bench_multirate --per-tick), stopping at 1e-4 R instead of 1e-7 R changes the per-tick force
   // by 0.014 % RMS (0.1 % at most) and leaves the error against the converged body (0.795 % RMS)
-  // as it was, while the tick's CPU p99 falls from 1.46 ms to 0.43 ms (docs/performance.md).
+  // as it was, while the tick's CPU p99 falls from 1.49-1.84 ms to 0.58-0.60 ms
+  // (docs/performance.md).
   constexpr double kLayerTol = 1e-4;  // of the tool radius, of node motion
   const double tol = (layer ? kLayerTol : 1e-9) * std::max(R, 1e-6);
   double res = 0;
