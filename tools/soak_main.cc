@@ -51,6 +51,7 @@
 #include <vector>
 #include <zmq.hpp>
 
+#include "io/scene.h"
 #include "net/builtin_scenes.h"
 #include "net/server.h"
 
@@ -587,19 +588,23 @@ int main(int argc, char** argv) {
   double seconds = 60, rate_hz = 1000, max_missed = 0.001;
   int clients = 4;
   long max_growth_kib = 1024;
-  std::string builtin = "cube", profile_csv, contact = "surface";
+  std::string builtin = "cube", scene_file, profile_csv, contact = "surface";
   bool realtime = false, in_process = false, reference_timer = false, probe_per_client = false;
   int client_only = -1, probe_id = 0;
   bool subscriber_only = false;
   app.add_option("--seconds", seconds, "run time, s")->check(CLI::Range(1.0, 1e6));
   app.add_option("--clients", clients, "churning clients")->check(CLI::Range(1, 256));
   app.add_option("--rate-hz", rate_hz, "server loop rate, Hz")->check(CLI::Range(1.0, 20000.0));
-  app.add_option("--builtin", builtin, "built-in scene")
-      ->check(CLI::IsMember(conica::net::builtin_scene_names()));
-  app.add_option("--contact", contact,
-                 "the scene's probe contact: surface (the default, a proxy against the surface) "
-                 "or nodes (the node penalty)")
-      ->check(CLI::IsMember({"surface", "nodes"}));
+  CLI::Option* builtin_opt = app.add_option("--builtin", builtin, "built-in scene")
+                                 ->check(CLI::IsMember(conica::net::builtin_scene_names()));
+  app.add_option("--scene", scene_file, "scene file (.pbtxt) instead of a built-in scene")
+      ->excludes(builtin_opt);
+  CLI::Option* contact_opt =
+      app.add_option(
+             "--contact", contact,
+             "the scene's probe contact: surface (the default, a proxy against the surface) "
+             "or nodes (the node penalty)")
+          ->check(CLI::IsMember({"surface", "nodes"}));
   app.add_option("--max-missed-fraction", max_missed, "goal: missed ticks / ticks (default 0.001)");
   app.add_option("--max-rss-growth-kib", max_growth_kib, "goal: VmRSS growth, KiB (default 1024)");
   app.add_flag("--probe-per-client", probe_per_client,
@@ -660,9 +665,14 @@ int main(int argc, char** argv) {
   opt.refuse_slow_scene = false;
   conica::net::Server server(ctx, opt);
   conica::BodySpec spec;
-  std::string err = conica::net::builtin_scene(builtin, 1.0 / rate_hz, &spec);
-  for (conica::ProbeSpec& p : spec.probes)
-    p.contact = contact == "nodes" ? conica::ContactModel::kNodes : conica::ContactModel::kSurface;
+  std::string err = scene_file.empty() ? conica::net::builtin_scene(builtin, 1.0 / rate_hz, &spec)
+                                       : conica::io::load_scene(scene_file, &spec);
+  // A built-in scene's probes take --contact (surface unless given); a scene file's keep what it
+  // says unless --contact is given.
+  if (scene_file.empty() || contact_opt->count() > 0)
+    for (conica::ProbeSpec& p : spec.probes)
+      p.contact =
+          contact == "nodes" ? conica::ContactModel::kNodes : conica::ContactModel::kSurface;
   if (probe_per_client && err.empty()) spec.probes.resize(clients, spec.probes.front());
   if (err.empty()) err = server.load(spec);
   // The client processes start (exec, libraries, ZeroMQ context) before the loop does, so that
@@ -875,12 +885,13 @@ int main(int argc, char** argv) {
   if (signal_number != 0)
     std::printf("interrupted by %s after %.0f s; client processes ended and reaped\n",
                 strsignal(signal_number), std::chrono::duration<double>(Clock::now() - t0).count());
-  std::printf(
-      "clients %d (%s), %.0f s at %.0f Hz (%s)%s: %" PRIu64 " sessions, %" PRIu64
-      " probes, %" PRIu64 " replies, %" PRIu64 " control requests, %" PRIu64 " state frames\n",
-      clients, in_process ? "threads of the server's process" : "separate processes", seconds,
-      rate_hz, builtin.c_str(), realtime ? ", --realtime" : "", tally.sessions.load(),
-      tally.probes.load(), tally.replies.load(), tally.controls.load(), tally.frames.load());
+  std::printf("clients %d (%s), %.0f s at %.0f Hz (%s)%s: %" PRIu64 " sessions, %" PRIu64
+              " probes, %" PRIu64 " replies, %" PRIu64 " control requests, %" PRIu64
+              " state frames\n",
+              clients, in_process ? "threads of the server's process" : "separate processes",
+              seconds, rate_hz, scene_file.empty() ? builtin.c_str() : scene_file.c_str(),
+              realtime ? ", --realtime" : "", tally.sessions.load(), tally.probes.load(),
+              tally.replies.load(), tally.controls.load(), tally.frames.load());
   std::printf("malformed sent %" PRIu64 ", answered with an error %" PRIu64 "\n",
               tally.malformed_sent.load(), tally.malformed_answered.load());
   std::printf("server errors by kind:");
