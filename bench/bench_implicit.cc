@@ -2,9 +2,8 @@
 // per-step time (p50 / p90 / p99 / max), CG iterations per Newton iteration, factorisations, and
 // the probe force per tick against a converged solve of the same body (RMS and largest relative
 // error over the ticks in contact).
-//   build/bin/bench_implicit [--depth M] [--up x|y|z] [--jacobi-newton N --jacobi-cg N] [--surface
-//   | --nodes]
-//                            [--newton-tolerance M] SCENE
+//   build/bin/bench_implicit [--depth M] [--up x|y|z] [--jacobi-newton N --jacobi-cg N]
+//                            [--surface | --nodes] [--newton-tolerance M] SCENE
 // --surface, --nodes: the probe on surface contact or the node law whatever the scene says.
 // --newton-tolerance: the stepped variants' Newton cap (m of node motion; 0: every iteration);
 // the reference always takes every iteration.
@@ -20,6 +19,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -128,8 +128,8 @@ void Report(const char* name, const Run& r, const Run& ref) {
 int main(int argc, char** argv) {
   double depth = 0.005;
   int up = 2, jn = -1, jc = -1;
-  bench::ProbeContact contact = bench::ProbeContact::kScene;
-  double newton_tolerance = -1;  // the scene's unless given
+  std::optional<ContactModel> contact;  // the scene's unless given
+  double newton_tolerance = -1;         // the scene's unless given
   std::string path;
   for (int a = 1; a < argc; ++a) {
     const std::string o = argv[a];
@@ -144,9 +144,9 @@ int main(int argc, char** argv) {
     else if (o == "--newton-tolerance" && a + 1 < argc)
       newton_tolerance = std::atof(argv[++a]);
     else if (o == "--surface")
-      contact = bench::ProbeContact::kSurface;
+      contact = ContactModel::kSurface;
     else if (o == "--nodes")
-      contact = bench::ProbeContact::kNodes;
+      contact = ContactModel::kNodes;
     else
       path = o;
   }

@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -158,7 +159,7 @@ int main(int argc, char** argv) {
   double body_rate = 0, cg_tolerance = 0, newton_tolerance = -1;  // the scene's unless given
   int refactor_every = -1, refactor_iterations = -1, newton = 0;
   bool per_tick = false, realtime = false, replies = false;
-  bench::ProbeContact contact = bench::ProbeContact::kScene;
+  std::optional<ContactModel> contact;  // the scene's unless given
   int up = 2, steps = 40;
   std::string path;
   for (int a = 1; a < argc; ++a) {
@@ -176,9 +177,9 @@ int main(int argc, char** argv) {
     else if (o == "--replies")
       replies = true;
     else if (o == "--surface")
-      contact = bench::ProbeContact::kSurface;
+      contact = ContactModel::kSurface;
     else if (o == "--nodes")
-      contact = bench::ProbeContact::kNodes;
+      contact = ContactModel::kNodes;
     else if (o == "--newton" && a + 1 < argc)
       newton = std::atoi(argv[++a]);
     else if (o == "--newton-tolerance" && a + 1 < argc)

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <ctime>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,18 +17,17 @@ namespace conica::bench {
 // The scene at `path` built into *m; false (the reason on stderr) when it cannot be read or built
 // or has no probe.
 // `contact`: every probe takes this contact model (its stiffness the default: from the tissue, or
-// for the node law from the masses and the step), whatever the scene says; kScene: the scene's.
-enum class ProbeContact { kScene, kSurface, kNodes };
+// for the node law from the masses and the step), whatever the scene says; none: the scene's.
 inline bool LoadProbedScene(const std::string& path, Model* m,
-                            ProbeContact contact = ProbeContact::kScene) {
+                            std::optional<ContactModel> contact = std::nullopt) {
   BodySpec spec;
   if (std::string e = io::load_scene(path, &spec); !e.empty()) {
     std::fprintf(stderr, "%s\n", e.c_str());
     return false;
   }
-  if (contact != ProbeContact::kScene)
+  if (contact)
     for (ProbeSpec& p : spec.probes) {
-      p.contact = contact == ProbeContact::kSurface ? ContactModel::kSurface : ContactModel::kNodes;
+      p.contact = *contact;
       p.stiffness = 0;
     }
   if (std::string e = build_model(spec, m); !e.empty() || m->probes.empty()) {

@@ -559,6 +559,23 @@ bool tool_touches(const Model& m, int k, double R, const Vec3& pose, const std::
                  .squaredNorm() < R * R;
 }
 
+double surface_spacing(const Model& m, const std::vector<int>& tris) {
+  const int n = tris.empty() ? static_cast<int>(m.surface.size()) : static_cast<int>(tris.size());
+  std::vector<double> edges;
+  edges.reserve(2 * n);
+  for (int q = 0; q < n; ++q) {
+    const auto& f = m.surface[tris.empty() ? q : tris[q]];
+    double l[3] = {(m.rest[f[1]] - m.rest[f[0]]).norm(), (m.rest[f[2]] - m.rest[f[1]]).norm(),
+                   (m.rest[f[0]] - m.rest[f[2]]).norm()};
+    std::sort(l, l + 3);
+    edges.push_back(l[0]);
+    edges.push_back(l[1]);
+  }
+  if (edges.empty()) return 0;
+  std::nth_element(edges.begin(), edges.begin() + static_cast<long>(edges.size() / 2), edges.end());
+  return edges[edges.size() / 2];
+}
+
 double triangle_distance(const Model& m, const std::vector<Vec3>& x, int t, const Vec3& p) {
   const auto& f = m.surface[t];
   Vec3 b;

@@ -280,6 +280,11 @@ bool tool_touches(const Model& model, int probe, double radius, const Vec3& pose
 void friction_forces(const Model& model, int k, const ProbeState& probe, const std::vector<Vec3>& x,
                      Vec3* node_force, Mat3* node_block = nullptr);
 
+// The surface's node spacing (m) at rest over the surface triangles `tris` (all of them when
+// empty): the median of each triangle's two shorter edges, so a lattice's quad split in two gives
+// its spacing, never the diagonal. 0 without triangles.
+double surface_spacing(const Model& model, const std::vector<int>& tris = {});
+
 // The distance (m) from point p to surface triangle t at positions x.
 double triangle_distance(const Model& model, const std::vector<Vec3>& x, int t, const Vec3& p);
 

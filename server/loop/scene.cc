@@ -4,8 +4,8 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
-#include <vector>
 
+#include "core/contact.h"
 #include "loop/clock.h"
 
 namespace conica::loop {
@@ -18,23 +18,6 @@ std::string format(const char* fmt, ...) {
   std::vsnprintf(buf, sizeof(buf), fmt, args);
   va_end(args);
   return buf;
-}
-
-// The surface's node spacing: the median over the surface triangles of their two shorter edges (a
-// lattice's quad split in two gives its spacing twice, never the diagonal). 0 without a surface.
-double surface_spacing(const Model& m) {
-  std::vector<double> e;
-  e.reserve(2 * m.surface.size());
-  for (const auto& t : m.surface) {
-    double l[3] = {(m.rest[t[1]] - m.rest[t[0]]).norm(), (m.rest[t[2]] - m.rest[t[1]]).norm(),
-                   (m.rest[t[0]] - m.rest[t[2]]).norm()};
-    std::sort(l, l + 3);
-    e.push_back(l[0]);
-    e.push_back(l[1]);
-  }
-  if (e.empty()) return 0;
-  std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
-  return e[e.size() / 2];
 }
 
 }  // namespace

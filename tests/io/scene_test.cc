@@ -28,11 +28,16 @@ std::string ErrorOf(const std::string& text) {
   return r ? std::string() : r.error();
 }
 
+// A scene file shipped in configs/: hidden files are scripts' temporary copies
+// (scripts/serve_press.sh, scripts/liver-by-hand.sh), not shipped configs.
+bool ShippedConfig(const std::filesystem::path& p) {
+  return p.extension() == ".pbtxt" && p.filename().string()[0] != '.';
+}
+
 TEST(SceneTest, EveryConfigLoadsAndBuilds) {
   int count = 0;
   for (const auto& e : std::filesystem::directory_iterator(kConfigs)) {
-    // Hidden files are scripts' temporary copies (scripts/serve_press.sh), not shipped configs.
-    if (e.path().extension() != ".pbtxt" || e.path().filename().string()[0] == '.') continue;
+    if (!ShippedConfig(e.path())) continue;
     auto m = load_model(e.path().string());
     ASSERT_TRUE(m) << m.error();
     EXPECT_GT(m.value().num_springs(), 0) << e.path();
@@ -474,8 +479,7 @@ Result<SceneFile> WriteAndRead(const SceneFile& scene, const std::string& file) 
 TEST(SceneWriterTest, EveryConfigRoundTrips) {
   int count = 0;
   for (const auto& e : std::filesystem::directory_iterator(kConfigs)) {
-    // Hidden files are scripts' temporary copies (scripts/serve_press.sh), not shipped configs.
-    if (e.path().extension() != ".pbtxt" || e.path().filename().string()[0] == '.') continue;
+    if (!ShippedConfig(e.path())) continue;
     auto a = read_scene(e.path().string());
     ASSERT_TRUE(a) << a.error();
     auto b = WriteAndRead(a.value(), e.path().filename().string());

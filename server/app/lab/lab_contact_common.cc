@@ -12,6 +12,7 @@
 
 #include "app/lab/lab_contact.h"
 #include "core/body.h"
+#include "core/contact.h"
 #include "core/step.h"
 
 namespace conica::lab::contact {
@@ -49,24 +50,15 @@ Top find_top(const Model& m) {
     }
   }
   if (top.tris.empty()) return top;
-  std::vector<double> edges;
   double xlo = std::numeric_limits<double>::infinity(), xhi = -xlo, ylo = xlo, yhi = -xlo;
-  for (int t : top.tris) {
-    const auto& f = m.surface[t];
-    double l[3];
-    for (int a = 0; a < 3; ++a) {
-      l[a] = (m.rest[f[(a + 1) % 3]] - m.rest[f[a]]).norm();
-      xlo = std::min(xlo, m.rest[f[a]].x());
-      xhi = std::max(xhi, m.rest[f[a]].x());
-      ylo = std::min(ylo, m.rest[f[a]].y());
-      yhi = std::max(yhi, m.rest[f[a]].y());
+  for (int t : top.tris)
+    for (int i : m.surface[t]) {
+      xlo = std::min(xlo, m.rest[i].x());
+      xhi = std::max(xhi, m.rest[i].x());
+      ylo = std::min(ylo, m.rest[i].y());
+      yhi = std::max(yhi, m.rest[i].y());
     }
-    std::sort(l, l + 3);
-    edges.push_back(l[0]);
-    edges.push_back(l[1]);
-  }
-  std::nth_element(edges.begin(), edges.begin() + edges.size() / 2, edges.end());
-  top.spacing = edges[edges.size() / 2];
+  top.spacing = surface_spacing(m, top.tris);
   top.cx = 0.5 * (xlo + xhi);
   top.cy = 0.5 * (ylo + yhi);
   auto dxy = [&](const Vec3& p) { return std::hypot(p.x() - top.cx, p.y() - top.cy); };
