@@ -8,12 +8,17 @@
 //   build/bin/bench_multirate [--depth M] [--up x|y|z] [--steps N] [--body-rate HZ]
 //                             [--newton N] [--newton-tolerance M] [--cg-tolerance T]
 //                             [--refactor-every N] [--refactor-iterations N]
-//                             [--per-tick [--realtime] [--replies]] [--surface | --nodes] SCENE
+//                             [--per-tick [--realtime] [--replies]] [--churn SECONDS]
+//                             [--surface | --nodes] SCENE
 // --surface, --nodes: the probe on surface contact or the node law whatever the scene says.
 // --realtime: the per-tick run paced at 1 kHz instead of waiting for each body step (the body is as
 // late as it is on this machine); --replies: a client's probe reply before each tick, as served.
-// The probe touches the node highest along `up` (the middle one of a flat top) and is pressed
-// `depth` over the first half of the steps, then held.
+// --churn: the soak's churning client (tools/soak_main.cc) without the wire, paced at 1 kHz:
+// sessions of 1-50 probe updates at a random point over the top of the body's box (down to 2 mm
+// below it along a sine), each update a probe reply, three per tick (as one client's replies come
+// back); the 1 kHz thread's tick and reply CPU time, p50 / p99 / max, and the tick's layer
+// evaluations. The probe touches the node highest along `up` (the middle one of a flat top) and is
+// pressed `depth` over the first half of the steps, then held.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -22,6 +27,7 @@
 #include <cstring>
 #include <ctime>
 #include <optional>
+#include <random>
 #include <string>
 #include <thread>
 #include <vector>
@@ -158,6 +164,72 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   return 0;
 }
 
+// --churn (see the top).
+int Churn(const Model& served, int up, double seconds) {
+  Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+  for (const Vec3& p : served.rest) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  std::mt19937_64 rng(1234);
+  std::uniform_real_distribution<double> u(0, 1);
+  State s = make_state(served);
+  loop::BodyWorker worker(served, s);
+  Timer t_tick, t_reply;
+  const int ticks = static_cast<int>(std::lround(seconds / served.options.dt));
+  int left = 0, k = 0, idle = 0;
+  Vec3 c0 = Vec3::Zero();
+  std::vector<int> evaluations;
+  evaluations.reserve(ticks);
+  const auto start = std::chrono::steady_clock::now();
+  for (int t = 0; t < ticks; ++t) {
+    for (int r = 0; r < 3; ++r) {
+      if (idle > 0) {
+        --idle;
+        continue;
+      }
+      if (left == 0) {  // a new session
+        left = 1 + static_cast<int>(u(rng) * 50);
+        k = 0;
+        Vec3 f(u(rng), u(rng), u(rng));
+        f[up] = 1;
+        c0 = lo + (hi - lo).cwiseProduct(f);
+      }
+      Vec3 c = c0;
+      c[up] += 5e-3 - 2e-3 * std::sin(0.3 * k++);
+      ProbeState& p = s.probes[0];
+      set_probe(s, 0, c);
+      t_reply.start();
+      worker.contact(served, s, 0, c, p.radius, &p);
+      t_reply.stop();
+      if (--left == 0) idle = static_cast<int>(u(rng) * 6);  // up to 2 ms between sessions
+    }
+    t_tick.start();
+    worker.tick(served, s);
+    t_tick.stop();
+    evaluations.push_back(worker.last_layer_evaluations());
+    std::this_thread::sleep_until(start + std::chrono::microseconds(1000 * (t + 1)));
+  }
+  std::vector<double> ev(evaluations.begin(), evaluations.end());
+  if (std::getenv("BENCH_CHURN_BY_EVALUATIONS"))
+    for (int e = 0; e <= 24; ++e) {
+      std::vector<double> c;
+      for (int t = 0; t < ticks; ++t)
+        if (evaluations[t] == e) c.push_back(t_tick.cpu_us[t]);
+      if (!c.empty())
+        std::printf("%d evaluations: %zu ticks, CPU p50 / p90 / max %.0f / %.0f / %.0f us\n", e,
+                    c.size(), Percentile(c, 0.5), Percentile(c, 0.9), Percentile(c, 1.0));
+    }
+  std::printf(
+      "churn, %d ticks, %zu replies: tick CPU p50 / p99 / max %.0f / %.0f / %.0f us, reply CPU "
+      "p50 / p99 / max %.0f / %.0f / %.0f us, layer evaluations per tick p50 / p99 / max %.0f / "
+      "%.0f / %.0f; %llu body steps, %llu estimated answers\n",
+      ticks, t_reply.cpu_us.size(), Percentile(t_tick.cpu_us, 0.5), Percentile(t_tick.cpu_us, 0.99),
+      Percentile(t_tick.cpu_us, 1.0), Percentile(t_reply.cpu_us, 0.5),
+      Percentile(t_reply.cpu_us, 0.99), Percentile(t_reply.cpu_us, 1.0), Percentile(ev, 0.5),
+      Percentile(ev, 0.99), Percentile(ev, 1.0),
+      static_cast<unsigned long long>(worker.body_steps()),
+      static_cast<unsigned long long>(worker.frozen_answers()));
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -165,6 +237,7 @@ int main(int argc, char** argv) {
   double body_rate = 0, cg_tolerance = 0, newton_tolerance = -1;  // the scene's unless given
   int refactor_every = -1, refactor_iterations = -1, newton = 0;
   bool per_tick = false, realtime = false, replies = false;
+  double churn = 0;
   std::optional<ContactModel> contact;  // the scene's unless given
   int up = 2, steps = 40;
   std::string path;
@@ -180,6 +253,8 @@ int main(int argc, char** argv) {
       per_tick = true;
     else if (o == "--realtime")
       realtime = true;
+    else if (o == "--churn" && a + 1 < argc)
+      churn = std::atof(argv[++a]);
     else if (o == "--replies")
       replies = true;
     else if (o == "--surface")
@@ -213,6 +288,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s: not multi-rate (solver body_rate_hz)\n", path.c_str());
     return 2;
   }
+  if (churn > 0) return Churn(served, up, churn);
   const Model body = body_model(served);
   // The highest node along `up`, nearest the middle of the nodes that high (a flat top's centre).
   double high = -1e300;

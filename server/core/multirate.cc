@@ -496,11 +496,12 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   int it = 0;
   double* d = lm.g.data();  // the active block's step (3 na <= 3 capacity)
   // Newton on (1) from the current dx.
+  int budget = kMaxLayerEvaluations;
   auto solve = [&]() {
     evaluations = 0;
     res = n3 > 0 ? residual() : 0;
     for (it = 0; it < kMaxNewton && res > tol && na > 0; ++it) {
-      if (layer && evaluations >= kMaxLayerEvaluations) break;
+      if (layer && evaluations >= budget) break;
       if (!factor_jacobian()) break;
       // J d = -R: the active rows by the LU, then each other row d_r = -R_r + (W Q)_{rA} d_A.
       for (int r = 0; r < 3 * na; ++r) d[r] = -lm.rhs[3 * act[r / 3] + r % 3];
@@ -520,7 +521,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       double alpha = 1;
       bool fell = false;
       for (int tries = 0; tries < 8; ++tries, alpha *= 0.5) {
-        if (layer && evaluations >= kMaxLayerEvaluations) break;
+        if (layer && evaluations >= budget) break;
         for (int a = 0; a < num; ++a) lm.dx[a] = lm.dx_last[a] + alpha * lm.step[a];
         res = residual();
         if ((fell = res < res0)) break;
@@ -539,7 +540,11 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     // with the proxy the body step held, not with the proxy of the last tick: the region is first
     // solved against the last tick's proxy, so that the proxy moves against the nodes the last
     // answer would have left under this model, not against a body a whole body step behind.
-    if (lm.fresh && probe->proxy_placed) solve();
+    if (lm.fresh && probe->proxy_placed) {
+      budget = kMaxLayerEvaluations / 2;
+      solve();
+      budget = std::max(kMaxLayerEvaluations / 2, kMaxLayerEvaluations - evaluations);
+    }
     for (int a = 0; a < num; ++a) (*x)[lm.nodes[a]] = lm.x0[a] + lm.dx[a];
     update_proxy(m, k, *x, cand, probe);
   }

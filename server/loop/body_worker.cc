@@ -24,6 +24,7 @@ BodyWorker::BodyWorker(const Model& served, const State& rest)
     s.x = rest.x;
   }
   input_ = rest.probes;
+  estimates_.resize(served.probes.size());
   near_.reserve(std::max(served.num_nodes(), 3 * static_cast<int>(served.surface.size())));
   const double share = tissue_share_stiffness(served);
   for (const ProbeSpec& p : served.probes)
@@ -87,11 +88,19 @@ void BodyWorker::answer(const Model& served, const std::vector<Vec3>& x, int k, 
   const double R = radius > 0 ? radius : probe->radius;
   if (lm.valid && (center - lm.center0).norm() <= reach_) {
     haptic_contact(served, lm, k, center, R, probe, x_out, &surface_);
+    evaluations_ = lm.layer_evaluations;
   } else {
     const bool surface = served.probes[k].contact == ContactModel::kSurface;
-    estimate_local_model(served, x, k, surface && probe->proxy_placed ? probe->proxy : center, R,
-                         reach_, share_[k], &near_, &estimate_);
-    haptic_contact(served, estimate_, k, center, R, probe, x_out, &surface_);
+    const Vec3 at = surface && probe->proxy_placed ? probe->proxy : center;
+    Estimate& e = estimates_[k];
+    if (e.model.num == 0 || e.body_step != body_steps_ || e.radius != R ||
+        (at - e.model.center0).norm() > reach_) {
+      estimate_local_model(served, x, k, at, R, reach_, share_[k], &near_, &e.model);
+      e.body_step = body_steps_;
+      e.radius = R;
+    }
+    haptic_contact(served, e.model, k, center, R, probe, x_out, &surface_);
+    evaluations_ = e.model.layer_evaluations;
     ++frozen_;
   }
 }

@@ -53,6 +53,8 @@ class BodyWorker {
   std::uint64_t body_steps() const { return body_steps_; }  // swapped in
   std::uint64_t late_ticks() const { return late_ticks_; }
   std::uint64_t frozen_answers() const { return frozen_; }  // answered by the estimate
+  // Layer evaluations of the last tick's or reply's surface contact solve (for benchmarks).
+  int last_layer_evaluations() const { return evaluations_; }
   // The body thread's factorisations and W solves so far (relaxed reads; for statistics).
   std::uint64_t factorizations() const { return factorizations_.load(std::memory_order_relaxed); }
   std::uint64_t region_solves() const { return region_solves_.load(std::memory_order_relaxed); }
@@ -82,7 +84,15 @@ class BodyWorker {
   Snapshot snap_[2];
   SurfaceScratch surface_;     // the ticks' surface contact (probes with contact SURFACE)
   std::vector<double> share_;  // (probes) N/m, the estimate's stiffness per node
-  LocalModel estimate_;        // until a body step's model covers the probe
+  // (probes) Until a body step's model covers the probe: an estimate around it, kept while the
+  // probe stays within reach of where it was made and no body step has been handed over (its
+  // region's motion then carries over from tick to tick, as a body step's model's does).
+  struct Estimate {
+    LocalModel model;
+    std::uint64_t body_step = 0;  // body_steps_ when it was made
+    double radius = 0;            // m, the tool radius it was made for
+  };
+  std::vector<Estimate> estimates_;
   std::vector<std::pair<double, int>> near_;  // (nodes) the estimate's scratch
   int front_ = 0, back_ = 1;
   std::vector<ProbeState> input_;  // the poses of the next body step
@@ -91,6 +101,7 @@ class BodyWorker {
   std::atomic<std::uint64_t> factorizations_{0}, region_solves_{0}, rollbacks_{0};
   int since_ = 0;
   std::uint64_t body_steps_ = 0, late_ticks_ = 0, frozen_ = 0;
+  int evaluations_ = 0;
   std::thread thread_;
 };
 
