@@ -14,6 +14,10 @@
 //    half-space: F = 2 a E* d, and the surface outside it sinks w(r) = (2 d / pi) asin(a / r).
 //    The block is 60 x 60 x 30 mm bonded to its base (h / a = 6), so the finite layer stiffens the
 //    punch a little over the half-space value.
+//  - Hayes et al. (1972): the same punch on layers 30 to 5 mm thick bonded to a rigid base,
+//    F = 2 a E* d kappa(a / h, nu), kappa from the layer's integral equation solved here
+//    (lab/layer_indentation.h); also as the ratio to the 30 mm layer's force, the thickness
+//    correction alone, which does not depend on how the lattice resolves the punch's edge.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -30,6 +34,7 @@
 #include "io/mesh_repair.h"
 #include "io/scene.h"
 #include "lab/calibration.h"
+#include "lab/layer_indentation.h"
 #include "lab/quasi_static.h"
 
 namespace conica::lab {
@@ -133,7 +138,7 @@ void register_validate(CLI::App& app, Runner* run) {
   struct Opts {
     std::string configs = "configs/validation", out_dir = "validation-out";
     bool quick = false;
-    std::vector<std::string> cases = {"cylinder", "punch", "hertz"};
+    std::vector<std::string> cases = {"cylinder", "punch", "layer", "hertz"};
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -143,8 +148,8 @@ void register_validate(CLI::App& app, Runner* run) {
   cmd->add_option("--out-dir", o->out_dir, "folder for the curves (CSV)")->capture_default_str();
   cmd->add_flag("--quick", o->quick,
                 "the served resolutions only (no refinement study, no Hertz sphere)");
-  cmd->add_option("--case", o->cases, "cylinder, punch, hertz (repeatable; default: all)")
-      ->check(CLI::IsMember({"cylinder", "punch", "hertz"}));
+  cmd->add_option("--case", o->cases, "cylinder, punch, layer, hertz (repeatable; default: all)")
+      ->check(CLI::IsMember({"cylinder", "punch", "layer", "hertz"}));
   cmd->callback([o, run] {
     *run = [o]() -> int {
       const char* me = "conica-lab validate";
@@ -250,6 +255,46 @@ void register_validate(CLI::App& app, Runner* run) {
             "| Boussinesq surface profile w(r) / d, a_eq < r <= 25 mm: RMS difference | %d x "
             "%d x %d cells | %ld | %.4f | 0 (w / d = (2 / pi) asin(a_eq / r)) | (of d) |\n",
             c, c, c / 2, n, std::sqrt(rms / std::max(1, m)));
+      }
+      // Hayes: the punch (the nodes within a) on layers of the block's footprint, 30 to 5 mm thick
+      // in whole cubic cells, bonded to the rigid base.
+      std::vector<int> layer_across = {24};
+      if (!o->quick) layer_across = {24, 32};
+      if (!wanted("layer")) layer_across.clear();
+      for (int c : layer_across) {
+        const double cell = 0.06 / c;
+        double f_thick = 0, kappa_thick = 0, h_thick = 0;
+        for (double target : {0.03, 0.015, 0.01, 0.005}) {
+          const int nz = std::max(1, static_cast<int>(std::lround(target / cell)));
+          const double h = nz * cell;
+          BodySpec s = block;
+          s.mesh = make_box_lattice(Vec3(0.06, 0.06, h), {c, c, nz});
+          double f = 0, area = 0;
+          long n = 0;
+          std::vector<Vec3> rest, x;
+          if (!indent_force(s, a, d, PunchRule::kNodes, &f, &area, &rest, &x, &n, &error)) {
+            std::fprintf(stderr, "%s: layer: %s\n", me, error.c_str());
+            return 1;
+          }
+          const double kappa = bonded_layer_kappa(a / h, mo.nu);
+          const double ref = bonded_layer_punch_force(a, h, mo.E, mo.nu, d);
+          std::printf(
+              "| flat punch a = 5 mm, d = %.3g mm on a 60 x 60 x %.4g mm layer bonded to its base "
+              "(a / h = %.3g), the nodes within a: force | %d x %d x %d cells | %ld | %.5g N | "
+              "%.5g N (Hayes, 2 a E* d kappa, kappa = %.4f) | %+.2f %% |\n",
+              d * 1e3, h * 1e3, a / h, c, c, nz, n, f, ref, kappa, 100 * (f / ref - 1));
+          if (f_thick == 0) {
+            f_thick = f;
+            kappa_thick = kappa;
+            h_thick = h;
+            continue;
+          }
+          std::printf(
+              "| the same over the %.4g mm layer's force: thickness correction | %d x %d x %d "
+              "cells | %ld | %.4f | %.4f (Hayes' kappa ratio) | %+.2f %% |\n",
+              h_thick * 1e3, c, c, nz, n, f / f_thick, kappa / kappa_thick,
+              100 * (f / f_thick / (kappa / kappa_thick) - 1));
+        }
       }
       // Hertz: a 10 mm sphere on the same block, to a tenth of its radius (contact radius up to
       // 3.2 mm against the 30 mm layer: a / h <= 0.11), F = (4 / 3) E* sqrt(R) d^1.5.
