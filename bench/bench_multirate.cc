@@ -8,11 +8,19 @@
 //   build/bin/bench_multirate [--depth M] [--up x|y|z] [--steps N] [--body-rate HZ]
 //                             [--newton N] [--newton-tolerance M] [--cg-tolerance T]
 //                             [--refactor-every N] [--refactor-iterations N]
-//                             [--per-tick [--realtime] [--replies]] [--churn SECONDS]
+//                             [--per-tick [--realtime] [--replies] [--lift] [--speed V]
+//                             [--ref-sweeps N]]
+//                             [--churn SECONDS]
 //                             [--surface | --nodes] SCENE
 // --surface, --nodes: the probe on surface contact or the node law whatever the scene says.
 // --realtime: the per-tick run paced at 1 kHz instead of waiting for each body step (the body is as
-// late as it is on this machine); --replies: a client's probe reply before each tick, as served.
+// late as it is on this machine); --replies: a client's probe reply before each tick, as served;
+// --speed V: the press's speed, m/s (10 mm/s unless given); --ref-sweeps N: the reference steps
+// N times per tick with the probe where it is (the proxy moved against the nodes, then the body
+// with the proxy held, N times: N = 1 is the single-rate step; a larger N approaches the joint
+// equilibrium of proxy and body, the quasi-static response);
+// --lift: after the press and its hold the probe goes straight back out at the press's speed
+// (instead of the slide), and the force at the same depths pressing and lifting is printed.
 // --churn: the soak's churning client (tools/soak_main.cc) without the wire, paced at 1 kHz:
 // sessions of 1-50 probe updates at a random point over the top of the body's box (down to 2 mm
 // below it along a sine), each update a probe reply, three per tick (as one client's replies come
@@ -73,17 +81,23 @@ void Row(const char* name, const Timer& t) {
 // against the same body stepped every tick with a converged Newton iteration (4 iterations, CG to
 // 1e-10): the per-tick force's RMS and largest relative error (over the ticks above a fifth of
 // the largest force).
-int PerTick(const Model& served, const Vec3& top, int up, double depth, bool realtime,
-            bool replies) {
+int PerTick(const Model& served, const Vec3& top, int up, double depth, bool realtime, bool replies,
+            bool lift, double speed, int sweeps) {
   const int side = (up + 1) % 3;
   const double r = served.probes[0].radius;
-  const double t_press = (depth + 1e-3) / 0.01, t_slide = t_press + 0.2;
-  const int ticks = static_cast<int>(std::lround((t_slide + 0.5 + 0.2) / served.options.dt));
+  const double t_press = (depth + 1e-3) / speed, t_slide = t_press + 0.2;
+  const int ticks = static_cast<int>(
+      std::lround((lift ? t_slide + t_press : t_slide + 0.5 + 0.2) / served.options.dt));
+  // The press; then the slide and a hold, or (lift) straight back out at the press's speed.
+  auto travel = [&](double t) {
+    if (!lift || t <= t_slide) return (depth + 1e-3) * std::min(1.0, t / t_press);
+    return (depth + 1e-3) * std::max(0.0, 1 - (t - t_slide) / t_press);
+  };
   auto path = [&](int tick) {
     const double t = (tick + 1) * served.options.dt;
     Vec3 c = top;
-    c[up] += r + 1e-3 - (depth + 1e-3) * std::min(1.0, t / t_press);
-    c[side] += 5e-3 * std::clamp((t - t_slide) / 0.5, 0.0, 1.0);
+    c[up] += r + 1e-3 - travel(t);
+    if (!lift) c[side] += 5e-3 * std::clamp((t - t_slide) / 0.5, 0.0, 1.0);
     return c;
   };
   Model ref = served;  // the node penalty stays the served one
@@ -102,6 +116,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
       t_ref.start();
       step(ref, s, ws);
       t_ref.stop();
+      for (int u = 1; u < sweeps; ++u) step(ref, s, ws);  // the same pose: toward equilibrium
       // The node law's force at the step's end; surface contact's is the proxy's of the step
       // (moved against the nodes the last step left), as the served tick's is.
       ProbeState p = s.probes[0];
@@ -138,12 +153,30 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
     f2 += ref_force[t].squaredNorm();
     worst = std::max(worst, e / ref_force[t].norm());
   }
+  if (lift) {  // the force at the same depths pressing and lifting, served and converged
+    for (double at : {0.25, 0.5, 0.75}) {
+      const double want = 1e-3 + at * depth;
+      int tp = -1, tl = -1;
+      for (int t = 0; t < ticks; ++t) {
+        const double tt = (t + 1) * served.options.dt;
+        if (tp < 0 && tt <= t_press && travel(tt) >= want) tp = t;
+        if (tt > t_slide && travel(tt) >= want) tl = t;
+      }
+      if (tp >= 0 && tl >= 0)
+        std::printf(
+            "at %.2f mm: pressing %.4f N (converged %.4f N), lifting %.4f N (converged %.4f "
+            "N)\n",
+            1e3 * at * depth, force[tp].norm(), ref_force[tp].norm(), force[tl].norm(),
+            ref_force[tl].norm());
+    }
+  }
   std::printf(
-      "per tick, press %.1f mm / hold / slide 5 mm / hold (%d ticks): largest force %.4f N; "
+      "per tick, press %.1f mm / hold / %s (%d ticks): largest force %.4f N; "
       "served against converged every tick: RMS %.3f %%, largest %.3f %%; %llu body steps, "
       "%llu factorisations, %llu estimated answers; converged step p50 %.1f ms; tick CPU p50 / "
       "p99 / max %.0f / %.0f / %.0f us\n",
-      1e3 * depth, ticks, fmax, 100 * std::sqrt(e2 / std::max(f2, 1e-300)), 100 * worst,
+      1e3 * depth, lift ? "lift" : "slide 5 mm / hold", ticks, fmax,
+      100 * std::sqrt(e2 / std::max(f2, 1e-300)), 100 * worst,
       static_cast<unsigned long long>(worker.body_steps()),
       static_cast<unsigned long long>(worker.factorizations()),
       static_cast<unsigned long long>(worker.frozen_answers()),
@@ -236,7 +269,9 @@ int main(int argc, char** argv) {
   double depth = 0.004;
   double body_rate = 0, cg_tolerance = 0, newton_tolerance = -1;  // the scene's unless given
   int refactor_every = -1, refactor_iterations = -1, newton = 0;
-  bool per_tick = false, realtime = false, replies = false;
+  bool per_tick = false, realtime = false, replies = false, lift = false;
+  double speed = 0.01;  // m/s, the press's (and the lift's)
+  int sweeps = 1;       // reference steps per tick
   double churn = 0;
   std::optional<ContactModel> contact;  // the scene's unless given
   int up = 2, steps = 40;
@@ -255,6 +290,12 @@ int main(int argc, char** argv) {
       realtime = true;
     else if (o == "--churn" && a + 1 < argc)
       churn = std::atof(argv[++a]);
+    else if (o == "--lift")
+      lift = true;
+    else if (o == "--speed" && a + 1 < argc)
+      speed = std::atof(argv[++a]);
+    else if (o == "--ref-sweeps" && a + 1 < argc)
+      sweeps = std::max(1, std::atoi(argv[++a]));
     else if (o == "--replies")
       replies = true;
     else if (o == "--surface")
@@ -303,7 +344,8 @@ int main(int argc, char** argv) {
     if (body.rest[i][up] > high - 1e-9 &&
         (top < 0 || (body.rest[i] - mid).norm() < (body.rest[top] - mid).norm()))
       top = i;
-  if (per_tick) return PerTick(served, body.rest[top], up, depth, realtime, replies);
+  if (per_tick)
+    return PerTick(served, body.rest[top], up, depth, realtime, replies, lift, speed, sweeps);
   const double r = served.probes[0].radius;
   const double reach = served.options.body_reach > 0 ? served.options.body_reach : 0.5 * r;
   auto probe_at = [&](int k) {

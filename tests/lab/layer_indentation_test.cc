@@ -399,7 +399,6 @@ TEST(LayerIndentation, SphereThinLayerLimits) {
   for (int i = 0; i < 2; ++i) EXPECT_NEAR((8 * s100[i] - 6 * s50[i] + s25[i]) / 3, 1, 2e-3) << i;
 }
 
-
 // The lattice against the reference: the EF30 block's card (configs/validation) on layers of its
 // 60 x 60 mm footprint, 30 and 5 mm thick in 2.5 mm cells (12 and 2 cells), bonded to a rigid
 // base, a flat punch of radius 5 mm (the top nodes within it) pressed 0.05 mm. The thickness
@@ -410,14 +409,15 @@ TEST(LayerIndentation, LatticeLayerFollowsTheThicknessCorrection) {
   BodySpec block;
   ASSERT_EQ(io::load_scene(CONICA_SOURCE_DIR "/configs/validation/punch-block-ef30.pbtxt", &block),
             "");
-  const double nu = body_poisson(lattice_moduli(block.groups), block.bulk_modulus,
-                                 block.shear_modulus);
+  const double nu =
+      body_poisson(lattice_moduli(block.groups), block.bulk_modulus, block.shear_modulus);
   const double a = 0.005, d = 5e-5;
   double force[2] = {0, 0};
   const double h[2] = {0.03, 0.005};
   for (int i = 0; i < 2; ++i) {
     BodySpec s = block;
-    s.mesh = make_box_lattice(Vec3(0.06, 0.06, h[i]), {24, 24, static_cast<int>(h[i] / 0.0025 + 0.5)});
+    s.mesh =
+        make_box_lattice(Vec3(0.06, 0.06, h[i]), {24, 24, static_cast<int>(h[i] / 0.0025 + 0.5)});
     std::vector<int> punch;
     ASSERT_EQ(add_flat_punch(&s, a, false, true, &punch, nullptr, PunchRule::kNodes), "");
     Model m;
