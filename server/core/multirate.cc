@@ -345,6 +345,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // restores that iterate's forces when the last backtracking fails). 8 rather than 16: the
   // phantom's per-tick bench (1e-4 R tolerance) tick CPU p99 / max 579-601 / 1,552-1,583 us ->
   // 355-435 / 608-655 us, per-tick RMS against the body solved every tick 0.795 -> 0.817 %.
+  // A fresh model's two solves share the budget (at most half of it for the first).
   constexpr int kMaxLayerEvaluations = 8;
   int evaluations = 0;
   const int num = lm.num, n3 = 3 * num, ld = 3 * lm.capacity;

@@ -319,4 +319,24 @@ ReactionFn punch_reaction(const std::vector<int>& punch) {
   };
 }
 
+std::string press_flat_punch(BodySpec spec, double radius, double depth, PunchRule rule,
+                             PunchPress* out) {
+  std::vector<int> punch;
+  if (std::string e = add_flat_punch(&spec, radius, false, true, &punch, &out->area, rule);
+      !e.empty())
+    return e;
+  Model m;
+  if (std::string e = build_model(spec, &m); !e.empty()) return e;
+  QuasiStaticOptions o;
+  o.samples = 1;
+  o.tolerance = 1e-6;
+  QuasiStaticStats st;
+  const Curve c = quasi_static_curve(m, punch_load(punch), punch_reaction(punch), depth, o, &st);
+  if (st.unconverged) return "indentation did not converge";
+  out->force = c.back().force;
+  out->rest = m.rest;
+  out->x = st.positions;
+  return "";
+}
+
 }  // namespace conica::lab

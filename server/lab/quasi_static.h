@@ -124,4 +124,17 @@ std::string add_flat_punch(BodySpec* spec, double radius, bool punch_bonded, boo
 LoadFn punch_load(const std::vector<int>& punch);
 ReactionFn punch_reaction(const std::vector<int>& punch);
 
+// A frictionless flat punch of `radius` (m) pressed `depth` (m) into the body of `spec` with its
+// base bonded (add_flat_punch with `rule`), in one quasi-static increment settled to 1e-6 of the
+// reaction: the small-strain indentation of the validation cases.
+struct PunchPress {
+  double force = 0;        // N, the body's reaction on the punch
+  double area = 0;         // m^2, what the punch drives (add_flat_punch)
+  std::vector<Vec3> rest;  // m, the nodes at rest
+  std::vector<Vec3> x;     // m, and pressed
+};
+// Returns what is wrong (the punch, the model, no convergence), empty on success.
+std::string press_flat_punch(BodySpec spec, double radius, double depth, PunchRule rule,
+                             PunchPress* out);
+
 }  // namespace conica::lab

@@ -53,7 +53,7 @@ class BodyWorker {
   std::uint64_t body_steps() const { return body_steps_; }  // swapped in
   std::uint64_t late_ticks() const { return late_ticks_; }
   std::uint64_t frozen_answers() const { return frozen_; }  // answered by the estimate
-  // Layer evaluations of the last tick's or reply's surface contact solve (for benchmarks).
+  // Layer evaluations of the last answer from a local model (ticks; for benchmarks).
   int last_layer_evaluations() const { return evaluations_; }
   // The body thread's factorisations and W solves so far (relaxed reads; for statistics).
   std::uint64_t factorizations() const { return factorizations_.load(std::memory_order_relaxed); }

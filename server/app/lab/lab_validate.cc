@@ -77,27 +77,6 @@ bool compress_force(BodySpec spec, bool bonded, double strain, double* force, do
   return true;
 }
 
-bool indent_force(BodySpec spec, double radius, double depth, PunchRule rule, double* force,
-                  double* area, std::vector<Vec3>* rest, std::vector<Vec3>* x, long* nodes,
-                  std::string* error) {
-  std::vector<int> punch;
-  if (std::string e = add_flat_punch(&spec, radius, false, true, &punch, area, rule); !e.empty())
-    return *error = e, false;
-  Model m;
-  if (std::string e = build_model(spec, &m); !e.empty()) return *error = e, false;
-  QuasiStaticOptions o;
-  o.samples = 1;
-  o.tolerance = 1e-6;
-  QuasiStaticStats st;
-  const Curve c = quasi_static_curve(m, punch_load(punch), punch_reaction(punch), depth, o, &st);
-  if (st.unconverged) return *error = "indentation did not converge", false;
-  *force = c.back().force;
-  *rest = m.rest;
-  *x = st.positions;
-  *nodes = m.num_nodes();
-  return true;
-}
-
 // A rigid frictionless sphere of radius R (surface contact through its proxy) pressed into the
 // middle of the top face to `depth` in `samples` increments, quasi-static: the indentation (the
 // device's travel less the coupling's stretch, m) and the force (N) at each increment.
@@ -216,10 +195,16 @@ void register_validate(CLI::App& app, Runner* run) {
         long n = 0;
         std::vector<Vec3> rest, x;
         for (PunchRule rule : {PunchRule::kNodes, PunchRule::kFaces}) {
-          if (!indent_force(s, a, d, rule, &f, &area, &rest, &x, &n, &error)) {
-            std::fprintf(stderr, "%s: punch: %s\n", me, error.c_str());
+          PunchPress press;
+          if (std::string e = press_flat_punch(s, a, d, rule, &press); !e.empty()) {
+            std::fprintf(stderr, "%s: punch: %s\n", me, e.c_str());
             return 1;
           }
+          f = press.force;
+          area = press.area;
+          n = static_cast<long>(press.rest.size());
+          rest = std::move(press.rest);
+          x = std::move(press.x);
           // Against the disc of the faces' area, or of the radius for the nodes (their rigid
           // faces are smaller, the ring of faces around them ramps down).
           ae = std::sqrt(area / M_PI);
@@ -269,13 +254,13 @@ void register_validate(CLI::App& app, Runner* run) {
           const double h = nz * cell;
           BodySpec s = block;
           s.mesh = make_box_lattice(Vec3(0.06, 0.06, h), {c, c, nz});
-          double f = 0, area = 0;
-          long n = 0;
-          std::vector<Vec3> rest, x;
-          if (!indent_force(s, a, d, PunchRule::kNodes, &f, &area, &rest, &x, &n, &error)) {
-            std::fprintf(stderr, "%s: layer: %s\n", me, error.c_str());
+          PunchPress press;
+          if (std::string e = press_flat_punch(s, a, d, PunchRule::kNodes, &press); !e.empty()) {
+            std::fprintf(stderr, "%s: layer: %s\n", me, e.c_str());
             return 1;
           }
+          const double f = press.force;
+          const long n = static_cast<long>(press.rest.size());
           const double kappa = bonded_layer_kappa(a / h, mo.nu);
           const double ref = bonded_layer_punch_force(a, h, mo.E, mo.nu, d);
           std::printf(
