@@ -15,10 +15,11 @@
 // --surface, --nodes: the probe on surface contact or the node law whatever the scene says.
 // --realtime: the per-tick run paced at 1 kHz instead of waiting for each body step (the body is as
 // late as it is on this machine); --replies: a client's probe reply before each tick, as served;
-// --speed V: the press's speed, m/s (10 mm/s unless given); --ref-sweeps N: the reference steps
-// N times per tick with the probe where it is (the proxy moved against the nodes, then the body
-// with the proxy held, N times: N = 1 is the single-rate step; a larger N approaches the joint
-// equilibrium of proxy and body, the quasi-static response);
+// --speed V: the press's speed, m/s (10 mm/s unless given). With surface contact the reference
+// tick is one step with the proxy in joint equilibrium with the nodes it leaves (converged,
+// joint_proxy_step); --ref-sweeps N instead steps N times per tick with the probe where it is
+// (the proxy moved against the nodes, then the body with the proxy held, N times: N = 1 is the
+// single-rate step; a larger N approaches the quasi-static response, time running N times over);
 // --lift: after the press and its hold the probe goes straight back out at the press's speed
 // (instead of the slide), and the force at the same depths pressing and lifting is printed.
 // --churn: the soak's churning client (tools/soak_main.cc) without the wire, paced at 1 kHz:
@@ -106,6 +107,14 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   ref.options.newton_tolerance = 0;
   ref.options.cg_iterations = 400;
   ref.options.cg_tolerance = 1e-10;
+  // Surface contact: each reference tick is the step with the proxy in joint equilibrium with
+  // the nodes it leaves (joint_proxy_step, core/multirate.h), unless --ref-sweeps asks for N
+  // alternating sweeps (the proxy moved against the nodes, then the body with it held).
+  const bool joint = ref.probes[0].contact == ContactModel::kSurface && sweeps == 0;
+  sweeps = std::max(1, sweeps);
+  Model held = ref;
+  held.probes[0].hold_proxy = true;
+  double worst_gap = 0;  // m, the joint reference's largest |G(p) - p|
   std::vector<Vec3> ref_force(ticks);
   Timer t_ref;
   {
@@ -114,7 +123,12 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
     for (int t = 0; t < ticks; ++t) {
       set_probe(s, 0, path(t));
       t_ref.start();
-      step(ref, s, ws);
+      if (joint) {
+        const double gap = joint_proxy_step(held, ref, 0, &s);
+        worst_gap = std::max(worst_gap, gap);
+      } else {
+        step(ref, s, ws);
+      }
       t_ref.stop();
       for (int u = 1; u < sweeps; ++u) step(ref, s, ws);  // the same pose: toward equilibrium
       // The node law's force at the step's end; surface contact's is the proxy's of the step
@@ -170,6 +184,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
             ref_force[tl].norm());
     }
   }
+  if (joint) std::printf("joint reference: largest |G(p) - p| %.3g R\n", worst_gap / r);
   std::printf(
       "per tick, press %.1f mm / hold / %s (%d ticks): largest force %.4f N; "
       "served against converged every tick: RMS %.3f %%, largest %.3f %%; %llu body steps, "
@@ -271,7 +286,7 @@ int main(int argc, char** argv) {
   int refactor_every = -1, refactor_iterations = -1, newton = 0;
   bool per_tick = false, realtime = false, replies = false, lift = false;
   double speed = 0.01;  // m/s, the press's (and the lift's)
-  int sweeps = 1;       // reference steps per tick
+  int sweeps = 0;       // reference steps per tick (0: surface contact's joint reference)
   double churn = 0;
   std::optional<ContactModel> contact;  // the scene's unless given
   int up = 2, steps = 40;

@@ -489,8 +489,8 @@ const Vec3* plane_axis(const Model& m, int k) {
   return m.probes[k].shape == ToolShape::kPlane ? &m.probes[k].axis : nullptr;
 }
 
-// The surface point the proxy rides on until its next update: the nearest point of the listed
-// triangles when it is within `reach` of the proxy (p->anchor -1 otherwise).
+}  // namespace
+
 void anchor_proxy(const Model& m, const std::vector<Vec3>& x, const int* list, int count,
                   double reach, ProbeState* p) {
   p->anchor = -1;
@@ -503,8 +503,6 @@ void anchor_proxy(const Model& m, const std::vector<Vec3>& x, const int* list, i
     p->anchor_offset = triangle_frame(m, x, t).inverse() * (p->proxy - near);
   }
 }
-
-}  // namespace
 
 double probe_radius(const Model& m, int k, const ProbeState& p) {
   return p.radius > 0 ? p.radius : m.probes[k].radius;

@@ -238,6 +238,12 @@ void update_proxy(const Model& model, int k, const std::vector<Vec3>& x,
                   ContactCandidates* candidates, ProbeState* probe,
                   int max_evaluations = kProxyMaxEvaluations);
 
+// The surface point the proxy of p rides on until its next update (p->anchor, anchor_bary,
+// anchor_offset): the nearest point of the listed triangles (list == nullptr: all `count` of
+// them) at positions x when it is within `reach` (m) of the proxy, else p->anchor = -1.
+void anchor_proxy(const Model& model, const std::vector<Vec3>& x, const int* list, int count,
+                  double reach, ProbeState* p);
+
 // The proxy stage for a proxy held where it is (the multi-rate body, whose proxy the 1 kHz tick
 // solved against the body's predicted positions; ProbeSpec::hold_proxy): fills the candidates
 // around it, probe->force, stiffness, depth, contacts and the anchor it rides on from here, with

@@ -1,5 +1,8 @@
 #include "core/multirate.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Dense>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -105,13 +108,17 @@ void choose_surface_region(const Model& m, const std::vector<Vec3>& x, const Vec
 }
 
 // The layer's force (and lumped blocks) of surface probe k with its tool at the proxy of p, over
-// the triangles `tris` at positions x, into force / block (added; the caller zeroes them).
+// the triangles `tris` at positions x, into force / block (added; the caller zeroes them); the
+// tool's side into *tool when given (its stiffness when `terms` asks for it).
 void layer_forces(const Model& m, int k, const ProbeState& p, const std::vector<Vec3>& x,
-                  const std::vector<int>& tris, Vec3* force, Mat3* block, Mat3* pair = nullptr) {
-  if (!p.active || !p.proxy_placed) return;
+                  const std::vector<int>& tris, Vec3* force, Mat3* block, Mat3* pair = nullptr,
+                  ToolContact* tool = nullptr, unsigned terms = kToolForceOnly) {
   ToolContact c;
+  if (!tool) tool = &c;
+  *tool = ToolContact{};
+  if (!p.active || !p.proxy_placed) return;
   tool_contact(m, k, probe_radius(m, k, p), p.proxy, x, tris.data(), static_cast<int>(tris.size()),
-               &c, force, block, kToolForceOnly, nullptr, pair);
+               tool, force, block, terms, nullptr, pair);
 }
 
 }  // namespace
@@ -123,6 +130,7 @@ LocalModel::LocalModel(int cap)
       f0(cap, Vec3::Zero()),
       b0(cap, Mat3::Zero()),
       w(9 * static_cast<size_t>(cap) * cap, 0.0),
+      winv(9 * static_cast<size_t>(cap) * cap, 0.0),
       f(cap, Vec3::Zero()),
       dx(cap, Vec3::Zero()),
       dx_last(cap, Vec3::Zero()),
@@ -130,7 +138,7 @@ LocalModel::LocalModel(int cap)
       dfdc(cap, Mat3::Zero()),
       jac(9 * static_cast<size_t>(cap) * cap, 0.0),
       rhs(3 * static_cast<size_t>(cap), 0.0),
-      g(9 * static_cast<size_t>(cap), 0.0),
+      g(12 * static_cast<size_t>(cap), 0.0),
       pivot(4 * static_cast<size_t>(cap), 0),
       coupled_count(cap, 0),
       coupled_node(static_cast<size_t>(kMaxCoupled) * cap, -1),
@@ -250,14 +258,35 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
         for (int cb = 0; cb < 3; ++cb)
           reg.w[(3 * b + cb) * n3 + col] =
               h2 * z_[static_cast<size_t>(col) * n + cb * nn + lm->nodes[b]];
+    // W^-1 on the free axes (a fixed axis has a zero row and column in W), for the joint
+    // solve's energy (haptic_contact).
+    std::vector<int> free_axes;
+    for (int r = 0; r < n3; ++r)
+      if (reg.w[static_cast<size_t>(r) * n3 + r] > 0) free_axes.push_back(r);
+    const int nf = static_cast<int>(free_axes.size());
+    Eigen::MatrixXd wf(nf, nf);
+    for (int r = 0; r < nf; ++r)
+      for (int c = 0; c < nf; ++c)
+        wf(r, c) = 0.5 * (reg.w[static_cast<size_t>(free_axes[r]) * n3 + free_axes[c]] +
+                          reg.w[static_cast<size_t>(free_axes[c]) * n3 + free_axes[r]]);
+    const Eigen::MatrixXd wfi =
+        nf > 0 ? Eigen::MatrixXd(wf.ldlt().solve(Eigen::MatrixXd::Identity(nf, nf)))
+               : Eigen::MatrixXd();
+    reg.winv.assign(static_cast<size_t>(n3) * n3, 0.0);
+    for (int r = 0; r < nf; ++r)
+      for (int c = 0; c < nf; ++c)
+        reg.winv[static_cast<size_t>(free_axes[r]) * n3 + free_axes[c]] = wfi(r, c);
     reg.generation = generation_;
     reg.num = num;
     reg.nodes.assign(lm->nodes.begin(), lm->nodes.begin() + num);
     ++solves_;
   }
-  for (int row = 0; row < n3; ++row)
+  for (int row = 0; row < n3; ++row) {
     std::copy(reg.w.begin() + static_cast<size_t>(row) * n3,
               reg.w.begin() + static_cast<size_t>(row + 1) * n3, lm->w.begin() + row * ld);
+    std::copy(reg.winv.begin() + static_cast<size_t>(row) * n3,
+              reg.winv.begin() + static_cast<size_t>(row + 1) * n3, lm->winv.begin() + row * ld);
+  }
   lm->valid = true;
   return true;
 }
@@ -287,6 +316,7 @@ void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, con
     for (int c = 0; c < 3 * num; ++c) {
       const int i = lm->nodes[r / 3];
       lm->w[r * ld + c] = r == c && m.free_axes[i][r % 3] > 0 && kt > 0 ? 1.0 / kt : 0.0;
+      lm->winv[r * ld + c] = r == c && m.free_axes[i][r % 3] > 0 && kt > 0 ? kt : 0.0;
     }
 }
 
@@ -346,7 +376,8 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // phantom's per-tick bench (1e-4 R tolerance) tick CPU p99 / max 579-601 / 1,552-1,583 us ->
   // 355-435 / 608-655 us, per-tick RMS against the body solved every tick 0.795 -> 0.817 %.
   // A fresh model's two solves share the budget (at most half of it for the first).
-  constexpr int kMaxLayerEvaluations = 8;
+  // (LocalModel::layer_budget: 8.)
+  const int max_layer_evaluations = lm.layer_budget;
   int evaluations = 0;
   const int num = lm.num, n3 = 3 * num, ld = 3 * lm.capacity;
   const bool layer = m.probes[k].contact == ContactModel::kSurface && x && surface;
@@ -362,6 +393,8 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     if (!std::isfinite(lm.dx[a].squaredNorm())) lm.dx[a].setZero();
 
   ContactCandidates* cand = layer ? &surface->candidates[k] : nullptr;
+  ToolContact tool;                      // the layer's side of the tool at the last evaluation
+  unsigned tool_terms = kToolForceOnly;  // the joint solve asks for the tool's stiffness
   if (layer)  // the region's indices by node, for the layer's pair blocks (reset on the way out)
     for (int a = 0; a < num; ++a) surface->region[lm.nodes[a]] = a;
   // f and dfdc = df/dx at x0 + dx: the node law, or the layer at the held proxy (dfdc = -B, its
@@ -383,7 +416,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       const int nt = static_cast<int>(cand->triangles.size());
       std::fill(surface->pair.begin(), surface->pair.begin() + 6 * nt, Mat3::Zero());
       layer_forces(m, k, *probe, *x, cand->triangles, surface->force.data(), surface->block.data(),
-                   surface->pair.data());
+                   surface->pair.data(), &tool, tool_terms);
       for (int a = 0; a < num; ++a) {
         lm.f[a] = surface->force[lm.nodes[a]];
         lm.dfdc[a] = -surface->block[lm.nodes[a]];
@@ -491,13 +524,13 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // by 0.014 % RMS (0.1 % at most) and leaves the error against the converged body (0.795 % RMS)
   // as it was, while the tick's CPU p99 falls from 1.49-1.84 ms to 0.58-0.60 ms
   // (docs/performance.md).
-  constexpr double kLayerTol = 1e-4;  // of the tool radius, of node motion
-  const double tol = (layer ? kLayerTol : 1e-9) * std::max(R, 1e-6);
+  const double layer_tol = lm.layer_tolerance;  // of the tool radius, of node motion (1e-4)
+  const double tol = (layer ? layer_tol : 1e-9) * std::max(R, 1e-6);
   double res = 0;
   int it = 0;
   double* d = lm.g.data();  // the active block's step (3 na <= 3 capacity)
   // Newton on (1) from the current dx.
-  int budget = kMaxLayerEvaluations;
+  int budget = max_layer_evaluations;
   auto solve = [&]() {
     evaluations = 0;
     res = n3 > 0 ? residual() : 0;
@@ -534,29 +567,221 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       }
     }
   };
+  // Surface contact, frictionless and unbonded: the proxy p and the region solved together, (1)
+  // and the proxy's equilibrium R_p = F_c(p - t) - F_l(p, x) = 0 (F_c the coupling's force at the
+  // device target t, F_l the layer's push on the tool), by Newton on the Schur complement in p.
+  // The layer's forces depend on x - p only, so d f_a / d p = B_a (its lumped block, the row sum
+  // of the pair blocks) and d R_p / d x_a = -B_a^T:
+  //   [ J        -W B ] [dx]   [-R_x]
+  //   [ -B^T  H - K_l ] [dp] = [-R_p],   J = I - W Q (as above), H the coupling's Hessian,
+  // K_l the layer's stiffness for the tool (nodes held). With u = J^-1 (-R_x), Y = J^-1 (-W B):
+  //   S dp = -R_p + B^T u,  S = H - K_l + B^T Y,  dx = u - Y dp,
+  // three more solves with J's factor per iteration. S is the proxy's stiffness with the region
+  // giving way as (1) says: the device's stiffness dF/dt = H (S^-1 H - I) (H (H - K_l)^-1 K_l when
+  // W = 0, the nodes held). Solved alone, as update_proxy then (1) with the proxy held once a tick,
+  // the two chase each other over tens of ticks (the proxy sees a layer stiffer than the body
+  // under it): a lift at 10 mm/s read 14 % below the quasi-static response (docs/contact.md).
+  const double g_stop = 0.9 * kContactDepthFraction * R;
+  Vec3 rp = Vec3::Zero();  // R_p
+  Mat3 S = Mat3::Zero();   // the Schur complement of the last factored iterate
+  bool have_s = false;
+  auto joint_solve = [&]() {
+    evaluations = 0;
+    tool_terms = kToolAll;
+    const Coupling link = coupling(m, k, R);
+    const Vec3 t = probe->center;
+    // Depth: at most the proxy update's depth plus its rate (the update bounds a tick's sinking).
+    const double g_limit = std::min(g_stop, probe->depth + kProxyDepthRate * R);
+    const double max_dp = 0.05 * R;  // m, a Newton step's proxy move at most
+    res = residual();
+    const double kpp = link.k + std::max(0.0, -tool.stiffness_psd.trace() / 3);
+    auto merit = [&]() {
+      rp = link.force(probe->proxy - t) - tool.force;
+      return std::max(res, rp.cwiseAbs().maxCoeff() / kpp);
+    };
+    double mer = merit();
+    // The joint system is the stationarity of the energy
+    //   Pi(dx, p) = 1/2 dx^T (W^-1 - B0) dx + f0^T dx + E_l(x0 + dx, p) + E_c(p - t)
+    // (its gradient is W^-1 R_x in dx and R_p in p), and the Newton matrix premultiplied by
+    // diag(W^-1, I) is its Hessian with the layer's pair blocks, positive definite: each step is
+    // a descent direction for Pi, backtracked until Pi falls enough (Armijo). A merit on the
+    // residuals instead stalls: the pair blocks leave out the faces' turning under the tool, which
+    // the region's large motion against a small proxy step makes the leading error of R_p.
+    auto energy = [&]() {  // after residual(): tool holds the layer at this iterate
+      double e = tool.energy + link.energy(probe->proxy - t);
+      for (int row = 0; row < n3; ++row) {
+        const double* wi = &lm.winv[row * ld];
+        double z = 0;
+        for (int c = 0; c < n3; ++c) z += wi[c] * lm.dx[c / 3][c % 3];
+        e += 0.5 * lm.dx[row / 3][row % 3] * z;
+      }
+      for (int q = 0; q < na; ++q) {
+        const int a = act[q];
+        e += lm.f0[a].dot(lm.dx[a]) - 0.5 * lm.dx[a].dot(lm.b0[a] * lm.dx[a]);
+      }
+      return e;
+    };
+    double pi = energy();
+    double* u = lm.g.data();  // then the three columns of Y, each ld long
+    // At the current iterate: J's factor, u, Y, S and the right-hand side of S dp.
+    Vec3 rhs_p;
+    auto schur = [&]() {
+      const int n = 3 * na;
+      if (na > 0 && !factor_jacobian()) return false;
+      for (int r = 0; r < n; ++r) u[r] = -lm.rhs[3 * act[r / 3] + r % 3];
+      if (n > 0) lu_solve(lm.jac.data(), n, ld, piv, u);
+      for (int cc = 0; cc < 3; ++cc) {
+        double* y = u + (cc + 1) * ld;
+        for (int r = 0; r < n; ++r) {
+          const int row = 3 * act[r / 3] + r % 3;
+          double sum = 0;
+          for (int q = 0; q < na; ++q) {  // (W B)_{row, cc}, B_b = -dfdc_b
+            const int b = act[q];
+            const double* wr = &lm.w[row * ld + 3 * b];
+            sum -=
+                wr[0] * lm.dfdc[b](0, cc) + wr[1] * lm.dfdc[b](1, cc) + wr[2] * lm.dfdc[b](2, cc);
+          }
+          y[r] = -sum;
+        }
+        if (n > 0) lu_solve(lm.jac.data(), n, ld, piv, y);
+      }
+      // S = H - K_l + B^T Y and the right-hand side -R_p + B^T u (K_l exact where H - K_l is
+      // positive definite, else its positive part, as update_proxy takes it).
+      const Mat3 H = link.hessian(probe->proxy - t);
+      Mat3 Jpp = H - tool.stiffness_psd;
+      S = Jpp;
+      rhs_p = -rp;
+      for (int q = 0; q < na; ++q) {
+        const Mat3 Bt = -lm.dfdc[act[q]].transpose();
+        for (int cc = 0; cc < 3; ++cc)
+          S.col(cc) += Bt * Vec3(u[(cc + 1) * ld + 3 * q], u[(cc + 1) * ld + 3 * q + 1],
+                                 u[(cc + 1) * ld + 3 * q + 2]);
+        rhs_p += Bt * Vec3(u[3 * q], u[3 * q + 1], u[3 * q + 2]);
+      }
+      return have_s = true;
+    };
+    for (it = 0; it < kMaxNewton && mer > tol && evaluations < budget; ++it) {
+      const int n = 3 * na;
+      if (!schur()) break;
+      const Eigen::PartialPivLU<Mat3> lu(S);
+      Vec3 dp = lu.solve(rhs_p);
+      if (!std::isfinite(dp.squaredNorm())) break;
+      if (dp.norm() > max_dp) dp *= max_dp / dp.norm();
+      // The region's step: d_A = u - Y dp, then every row d_r = -R_r + (W Q)_{rA} d_A + (W B)_r dp.
+      for (int r = 0; r < n; ++r)
+        for (int cc = 0; cc < 3; ++cc) u[r] -= u[(cc + 1) * ld + r] * dp[cc];
+      for (int row = 0; row < n3; ++row) {
+        double sum = -lm.rhs[row];
+        for (int c = 0; c < n; ++c) sum += wq(row, c / 3, c % 3) * u[c];
+        for (int q = 0; q < na; ++q) {
+          const int b = act[q];
+          const double* wr = &lm.w[row * ld + 3 * b];
+          const Vec3 bd = -lm.dfdc[b] * dp;
+          sum += wr[0] * bd[0] + wr[1] * bd[1] + wr[2] * bd[2];
+        }
+        lm.rhs[row] = sum;
+      }
+      for (int a = 0; a < num; ++a) {
+        lm.dx_last[a] = lm.dx[a];
+        lm.step[a] = Vec3(lm.rhs[3 * a], lm.rhs[3 * a + 1], lm.rhs[3 * a + 2]);
+      }
+      // Pi's slope along the step: (W^-1 dx - B0 dx + f0 - f) . d + R_p . dp.
+      double slope = rp.dot(dp);
+      for (int row = 0; row < n3; ++row) {
+        const double* wi = &lm.winv[row * ld];
+        double z = 0;
+        for (int c = 0; c < n3; ++c) z += wi[c] * lm.dx[c / 3][c % 3];
+        slope += z * lm.rhs[row];
+      }
+      for (int q = 0; q < na; ++q) {
+        const int a = act[q];
+        slope += (lm.f0[a] - lm.f[a] - lm.b0[a] * lm.dx[a]).dot(lm.step[a]);
+      }
+      const Vec3 p_last = probe->proxy;
+      const double pi0 = pi, mer0 = mer;
+      double alpha = 1;
+      bool fell = false;
+      for (int tries = 0; tries < 10 && evaluations < budget && slope < 0; ++tries, alpha *= 0.5) {
+        for (int a = 0; a < num; ++a) lm.dx[a] = lm.dx_last[a] + alpha * lm.step[a];
+        probe->proxy = p_last + alpha * dp;
+        res = residual();
+        pi = energy();
+        mer = merit();
+        // Pi falls enough, or (near the answer, where Pi's change is below the layer
+        // quadrature's rounding) the residuals fall.
+        if ((fell = (pi <= pi0 + 1e-4 * alpha * slope || mer < mer0) &&
+                    (tool.depth <= g_limit || tool.depth <= probe->depth)))
+          break;
+      }
+      if (!fell) {
+        for (int a = 0; a < num; ++a) lm.dx[a] = lm.dx_last[a];
+        probe->proxy = p_last;
+        res = residual();
+        pi = energy();
+        mer = merit();
+        break;
+      }
+    }
+    // The device's stiffness needs S: at the start when no step was taken (the answer held).
+    if (it == 0) schur();
+    tool_terms = kToolForceOnly;
+  };
+  const bool joint = layer && m.probes[k].friction == 0 && !m.probes[k].bonded;
+  Vec3 last_proxy = probe->proxy;
   if (layer) {
     // Surface contact: the proxy moves first, against the nodes where the last answer left them
-    // (a one-tick stagger, as in the single-rate step), then (1) is solved with it held. A fresh
-    // model (a body step just handed over) starts at the body's state, which is in equilibrium
-    // with the proxy the body step held, not with the proxy of the last tick: the region is first
-    // solved against the last tick's proxy, so that the proxy moves against the nodes the last
-    // answer would have left under this model, not against a body a whole body step behind.
+    // (update_proxy: its jumps, placement, swept crossings and depth rate), then (1) is solved
+    // with it, jointly with the proxy where the tool is frictionless and unbonded, else with the
+    // proxy held (a one-tick stagger, as in the single-rate step). A fresh model (a body step
+    // just handed over) starts at the body's state, which is in equilibrium with the proxy the
+    // body step held, not with the proxy of the last tick: the region is first solved against
+    // the last tick's proxy, so that the proxy moves against the nodes the last answer would have
+    // left under this model, not against a body a whole body step behind.
     if (lm.fresh && probe->proxy_placed) {
-      budget = kMaxLayerEvaluations / 2;
+      budget = max_layer_evaluations / 2;
       solve();
-      budget = std::max(kMaxLayerEvaluations / 2, kMaxLayerEvaluations - evaluations);
+      budget = std::max(max_layer_evaluations / 2, max_layer_evaluations - evaluations);
     }
     for (int a = 0; a < num; ++a) (*x)[lm.nodes[a]] = lm.x0[a] + lm.dx[a];
+    last_proxy = probe->proxy;
     update_proxy(m, k, *x, cand, probe);
   }
   lm.fresh = false;
   const int evaluations_before = evaluations;
-  solve();
+  const bool jointly = joint && probe->active && probe->proxy_placed;
+  if (jointly) {
+    const Vec3 updated = probe->proxy, velocity = probe->proxy_velocity;
+    joint_solve();
+    // The device's side at the joint answer: the coupling's force, its stiffness with the
+    // region giving way, the tool's depth and faces; the proxy's velocity (a motion, not a jump:
+    // the update's) and the surface point it rides on from here.
+    const Coupling link = coupling(m, k, R);
+    const Vec3 e = probe->proxy - probe->center;
+    probe->force = link.force(e);
+    probe->depth = tool.depth;
+    probe->contacts = tool.faces;
+    probe->stiffness.setZero();
+    if (have_s && tool.faces > 0) {
+      const Mat3 H = link.hessian(e) + 1e-9 * link.k * Mat3::Identity();
+      probe->stiffness = H * (S.partialPivLu().solve(H) - Mat3::Identity());
+    } else if (tool.faces > 0) {
+      probe->stiffness = link.device_stiffness(e, tool.stiffness);
+    }
+    const double dt = m.options.dt;
+    if ((velocity * dt - (updated - last_proxy)).norm() <= 1e-9 * R + 1e-12 &&
+        velocity.squaredNorm() > 0)
+      probe->proxy_velocity = (probe->proxy - last_proxy) / dt;
+    anchor_proxy(m, *x, cand->triangles.data(), static_cast<int>(cand->triangles.size()),
+                 kCandidateReach * R, probe);
+  } else {
+    solve();
+  }
   lm.newton_iterations = it;
   lm.layer_evaluations = evaluations_before + evaluations;
   lm.residual = res;
-  // Surface contact: the device has the coupling force and stiffness of the proxy's update, and
-  // x the region at x0 + dx (the last evaluation wrote it: solve() ends on its final iterate).
+  // Surface contact: the device has the coupling force and stiffness of the joint answer (or of
+  // the proxy's update where the proxy was held), and x the region at x0 + dx (the last
+  // evaluation wrote it: both solves end on their final iterate).
   if (layer) {
     for (int a = 0; a < num; ++a) surface->region[lm.nodes[a]] = -1;
     return;
@@ -597,6 +822,77 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   }
   if (x)
     for (int a = 0; a < num; ++a) (*x)[lm.nodes[a]] = lm.x0[a] + lm.dx[a];
+}
+
+double joint_proxy_step(const Model& held, const Model& free, int k, State* s, int iterations,
+                        double tol) {
+  const State start = *s;
+  const Vec3 target = start.probes[k].center;
+  const double R = probe_radius(free, k, start.probes[k]);
+  const Coupling link = coupling(free, k, R);
+  // The step holding the proxy at p into *out, and the proxy's residual there, R_p(p) =
+  // F_c(p - t) - F_l(p, x(p)): the coupling's force less the layer's push on the tool.
+  auto residual = [&](const Vec3& p, State* out) {
+    *out = start;
+    out->probes[k].proxy = p;
+    out->probes[k].proxy_placed = true;
+    out->probes[k].anchor = -1;
+    Workspace ws(held);
+    step(held, *out, ws);
+    ToolContact tool;
+    tool_contact(free, k, R, p, out->x, nullptr, 0, &tool, nullptr, nullptr, kToolForceOnly);
+    return Vec3(link.force(p - target) - tool.force);
+  };
+  // The plain step (the proxy where *s holds it), then the proxy's update against the nodes it
+  // leaves: the first guess, and the placement of a proxy not yet placed.
+  State end = start;
+  {
+    Workspace ws(held);
+    step(held, end, ws);
+    ProbeState& r = end.probes[k];
+    r.center = target;
+    r.anchor = -1;
+    update_proxy(free, k, end.x, nullptr, &r, 64);
+    if (!r.active || !r.proxy_placed) {
+      *s = end;
+      return 0;
+    }
+  }
+  Vec3 p = end.probes[k].proxy;
+  const double e = 1e-6 * R;  // m, the difference step
+  State scratch;
+  Vec3 rp = residual(p, &end);
+  for (int it = 0; it < iterations && rp.norm() > tol * link.k; ++it) {
+    Mat3 J;
+    for (int a = 0; a < 3; ++a)
+      J.col(a) =
+          (residual(p + e * Vec3::Unit(a), &scratch) - residual(p - e * Vec3::Unit(a), &scratch)) /
+          (2 * e);
+    Vec3 dp = J.partialPivLu().solve(-rp);
+    if (!std::isfinite(dp.squaredNorm())) break;
+    if (dp.norm() > 0.1 * R) dp *= 0.1 * R / dp.norm();
+    bool fell = false;
+    for (int tries = 0; tries < 20 && !fell; ++tries, dp *= 0.5) {
+      const Vec3 r = residual(p + dp, &scratch);
+      if ((fell = r.norm() < rp.norm())) {
+        p += dp;
+        rp = r;
+        std::swap(end, scratch);
+      }
+    }
+    if (!fell) break;
+  }
+  // The probe as the served tick leaves it: the coupling's force at the joint answer.
+  ProbeState& q = end.probes[k];
+  q.center = target;
+  q.proxy = p;
+  q.force = link.force(p - target);
+  ToolContact tool;
+  tool_contact(free, k, R, p, end.x, nullptr, 0, &tool, nullptr, nullptr, kToolForceOnly);
+  q.depth = tool.depth;
+  q.contacts = tool.faces;
+  *s = end;
+  return rp.norm() / link.k;
 }
 
 }  // namespace conica

@@ -24,14 +24,20 @@
 // nodes with the tool at its proxy, and the region is the nodes of the surface triangles within
 // the probe radius plus the margin of the proxy (only surface nodes carry the layer's force). A
 // tick first moves the proxy toward the device target with the nodes held where the last answer
-// left them (update_proxy, as the single-rate proxy stage does), then solves (1) with the proxy
-// held; df/dx in J is the layer's lumped node blocks (-B, the positive semi-definite bound the
-// implicit system takes), so Newton converges to the exact (1) at a linear rate where the blocks
-// leave out the layer's curvature. The device gets the coupling force and its stiffness with the
-// nodes held; the proxy's next update sees the nodes this tick moved (a one-tick stagger, as in
-// the single-rate step). A fresh model (a body step just handed over, in equilibrium with the
-// proxy its step held) is first solved against the last tick's proxy, then the proxy moves. Each
-// solve stops at 1e-4 R of node motion or after a fixed number of layer evaluations, so the tick
+// left them (update_proxy, as the single-rate proxy stage does: placement, swept crossings, jumps
+// and its depth rate). A frictionless, unbonded tool then solves (1) and the proxy's equilibrium
+// (coupling force = the layer's push) together, by Newton on the Schur complement in the proxy
+// (haptic_contact says how); the device gets the coupling force at that joint answer and its
+// stiffness with the region giving way. Solving the two one after the other once a tick lets
+// them chase each other over tens of ticks (a lift read 14 % soft, docs/contact.md). A tool with
+// friction or bonded solves (1) with the proxy held (its stick and slip live in update_proxy), the
+// device gets the update's force and stiffness with the nodes held, and the next update sees the
+// nodes this tick moved (a one-tick stagger, as in the single-rate step). df/dx in J is the
+// layer's lumped node blocks (-B, the positive semi-definite bound the implicit system takes), so
+// Newton converges to the exact (1) at a linear rate where the blocks leave out the layer's
+// curvature. A fresh model (a body step just handed over, in equilibrium with the proxy its step
+// held) is first solved against the last tick's proxy, then the proxy moves. Each solve stops at
+// LocalModel::layer_tolerance of node motion or after layer_budget layer evaluations, so the tick
 // stays bounded. The body step holds the proxy where the ticks left it (body_model).
 #pragma once
 
@@ -58,6 +64,7 @@ struct LocalModel {
   std::vector<Vec3> x0, f0;     // (capacity) m, N: positions and probe forces at the body state
   std::vector<Mat3> b0;         // (capacity) N/m: the contact Jacobian the system held
   std::vector<double> w;        // (9 capacity^2) m/N: W_RR, row-major 3 capacity x 3 capacity
+  std::vector<double> winv;     // (9 capacity^2) N/m: W_RR^-1 on the free axes (0 on fixed ones)
   // Haptic state and scratch (1 kHz thread). dx: the region's displacements of the last answer,
   // where the next one starts (zero in a fresh model).
   std::vector<Vec3> f, dx, dx_last, step;
@@ -71,9 +78,13 @@ struct LocalModel {
   std::vector<int> coupled_count, coupled_node;  // (capacity), (kMaxCoupled capacity)
   std::vector<Mat3> coupled;                     // (kMaxCoupled capacity)
   bool fresh = false;                            // dx was reset (a new region or body state)
-  int newton_iterations = 0;                     // of the last haptic_contact
-  int layer_evaluations = 0;                     // of the last haptic_contact (surface contact)
-  double residual = 0;                           // m, its final |R(dx)|
+  // Surface contact: each solve stops at this much node motion (fraction of the tool radius) or
+  // after this many layer evaluations (haptic_contact says why these; tests ask for more).
+  double layer_tolerance = 1e-4;
+  int layer_budget = 8;
+  int newton_iterations = 0;  // of the last haptic_contact
+  int layer_evaluations = 0;  // of the last haptic_contact (surface contact)
+  double residual = 0;        // m, its final |R(dx)|
 };
 
 // The 1 kHz side's scratch for probes with surface contact, sized for the model at load: each
@@ -115,7 +126,8 @@ class LocalModelBuilder {
     std::uint64_t generation = 0;
     int num = 0;
     std::vector<int> nodes;
-    std::vector<double> w;  // (3 num)^2, leading dimension 3 num
+    std::vector<double> w;     // (3 num)^2, leading dimension 3 num
+    std::vector<double> winv;  // its inverse on the free axes (zero on fixed ones), the same
   };
   SystemFactor* last(Workspace& ws);
   std::unique_ptr<SystemFactor> factor_;
@@ -176,5 +188,17 @@ void prime_workspace(Workspace& ws);
 // the probe's proxy. Allocates nothing.
 void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, double radius,
                     ProbeState* probe, std::vector<Vec3>* x, SurfaceScratch* surface = nullptr);
+
+// The converged reference of the joint solve (offline: it copies states and allocates). One step
+// of `held` (a body whose surface tool k holds its proxy, ProbeSpec::hold_proxy) from *s, with
+// the tool's target t where *s has it and its proxy p in joint equilibrium with the nodes x(p)
+// that step leaves: R_p(p) = F_c(p - t) - F_l(p, x(p)) = 0 (the coupling's force and the layer's
+// push on the tool; `free` is the same body with the proxy free). Newton on R_p from the proxy
+// the plain step and update_proxy leave, its Jacobian by central differences of whole steps,
+// backtracked; stops at |R_p| <= tol k_c (k_c the coupling's stiffness) or after `iterations`.
+// *s ends at that step, the probe with the coupling's force at p (as the served tick gives it),
+// depth and faces. Returns |R_p| / k_c (m).
+double joint_proxy_step(const Model& held, const Model& free, int k, State* s, int iterations = 8,
+                        double tol = 1e-10);
 
 }  // namespace conica
