@@ -114,17 +114,17 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   sweeps = std::max(1, sweeps);
   Model held = ref;
   held.probes[0].hold_proxy = true;
-  double worst_gap = 0;  // m, the joint reference's largest |G(p) - p|
+  double worst_gap = 0;  // m, the joint reference's largest |R_p| / k_c
   std::vector<Vec3> ref_force(ticks);
   Timer t_ref;
   {
     State s = make_state(ref);
-    Workspace ws(ref);
+    Workspace ws(ref), ws_held(held);
     for (int t = 0; t < ticks; ++t) {
       set_probe(s, 0, path(t));
       t_ref.start();
       if (joint) {
-        const double gap = joint_proxy_step(held, ref, 0, &s);
+        const double gap = joint_proxy_step(held, ref, 0, &s, &ws_held);
         worst_gap = std::max(worst_gap, gap);
       } else {
         step(ref, s, ws);
@@ -184,7 +184,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
             ref_force[tl].norm());
     }
   }
-  if (joint) std::printf("joint reference: largest |G(p) - p| %.3g R\n", worst_gap / r);
+  if (joint) std::printf("joint reference: largest |R_p| / k_c %.3g R\n", worst_gap / r);
   std::printf(
       "per tick, press %.1f mm / hold / %s (%d ticks): largest force %.4f N; "
       "served against converged every tick: RMS %.3f %%, largest %.3f %%; %llu body steps, "

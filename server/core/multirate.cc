@@ -516,6 +516,32 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
         lm.jac[r * ld + c] = (r == c ? 1.0 : 0.0) - wq(3 * act[r / 3] + r % 3, c / 3, c % 3);
     return lu_factor(lm.jac.data(), n, ld, piv);
   };
+  // Every row's step from the active block's d_A (and the proxy's step dp, surface contact):
+  // rhs_r = -R_r + (W Q)_{rA} d_A + (W B)_r dp, as W v with the node vectors v = Q_A d_A + B dp
+  // (lm.step holds v), O((3 |R|)^2) instead of a (W Q) product per entry.
+  auto region_step = [&](const double* dA, const Vec3& dp) {
+    for (int a = 0; a < num; ++a) lm.step[a].setZero();
+    for (int q = 0; q < na; ++q) {
+      const int b = act[q];
+      const Vec3 db(dA[3 * q], dA[3 * q + 1], dA[3 * q + 2]);
+      if (!layer) {
+        lm.step[b] += (lm.b0[b] + lm.dfdc[b]) * db;
+        continue;
+      }
+      lm.step[b] += lm.b0[b] * db - lm.dfdc[b] * dp;
+      const int base = b * LocalModel::kMaxCoupled;
+      for (int e = 0; e < lm.coupled_count[b]; ++e)
+        lm.step[lm.coupled_node[base + e]] -= lm.coupled[base + e] * db;
+    }
+    for (int row = 0; row < n3; ++row) {
+      const double* wr = &lm.w[row * ld];
+      double sum = -lm.rhs[row];
+      for (int a = 0; a < num; ++a)
+        sum += wr[3 * a] * lm.step[a][0] + wr[3 * a + 1] * lm.step[a][1] +
+               wr[3 * a + 2] * lm.step[a][2];
+      lm.rhs[row] = sum;
+    }
+  };
 
   // The node law's Newton converges quadratically, to round-off; the layer's (its lumped blocks
   // in J) linearly, so it stops where the force is settled. The device force is the proxy's
@@ -540,11 +566,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       // J d = -R: the active rows by the LU, then each other row d_r = -R_r + (W Q)_{rA} d_A.
       for (int r = 0; r < 3 * na; ++r) d[r] = -lm.rhs[3 * act[r / 3] + r % 3];
       lu_solve(lm.jac.data(), 3 * na, ld, piv, d);
-      for (int row = 0; row < n3; ++row) {
-        double s = -lm.rhs[row];
-        for (int c = 0; c < 3 * na; ++c) s += wq(row, c / 3, c % 3) * d[c];
-        lm.rhs[row] = s;  // the step of every row (the active ones reproduce d)
-      }
+      region_step(d, Vec3::Zero());  // the step of every row (the active ones reproduce d)
       // Backtracking: the full step, or halves of it until the residual falls (the node law: the
       // smallest tried if none does; the layer: the last iterate, and the solve ends there).
       for (int a = 0; a < num; ++a) {
@@ -670,17 +692,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       // The region's step: d_A = u - Y dp, then every row d_r = -R_r + (W Q)_{rA} d_A + (W B)_r dp.
       for (int r = 0; r < n; ++r)
         for (int cc = 0; cc < 3; ++cc) u[r] -= u[(cc + 1) * ld + r] * dp[cc];
-      for (int row = 0; row < n3; ++row) {
-        double sum = -lm.rhs[row];
-        for (int c = 0; c < n; ++c) sum += wq(row, c / 3, c % 3) * u[c];
-        for (int q = 0; q < na; ++q) {
-          const int b = act[q];
-          const double* wr = &lm.w[row * ld + 3 * b];
-          const Vec3 bd = -lm.dfdc[b] * dp;
-          sum += wr[0] * bd[0] + wr[1] * bd[1] + wr[2] * bd[2];
-        }
-        lm.rhs[row] = sum;
-      }
+      region_step(u, dp);
       for (int a = 0; a < num; ++a) {
         lm.dx_last[a] = lm.dx[a];
         lm.step[a] = Vec3(lm.rhs[3 * a], lm.rhs[3 * a + 1], lm.rhs[3 * a + 2]);
@@ -824,8 +836,13 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     for (int a = 0; a < num; ++a) (*x)[lm.nodes[a]] = lm.x0[a] + lm.dx[a];
 }
 
-double joint_proxy_step(const Model& held, const Model& free, int k, State* s, int iterations,
-                        double tol) {
+double joint_proxy_step(const Model& held, const Model& free, int k, State* s, Workspace* ws,
+                        int iterations, double tol) {
+  std::unique_ptr<Workspace> own;
+  if (!ws) {
+    own = std::make_unique<Workspace>(held);
+    ws = own.get();
+  }
   const State start = *s;
   const Vec3 target = start.probes[k].center;
   const double R = probe_radius(free, k, start.probes[k]);
@@ -837,8 +854,7 @@ double joint_proxy_step(const Model& held, const Model& free, int k, State* s, i
     out->probes[k].proxy = p;
     out->probes[k].proxy_placed = true;
     out->probes[k].anchor = -1;
-    Workspace ws(held);
-    step(held, *out, ws);
+    step(held, *out, *ws);
     ToolContact tool;
     tool_contact(free, k, R, p, out->x, nullptr, 0, &tool, nullptr, nullptr, kToolForceOnly);
     return Vec3(link.force(p - target) - tool.force);
@@ -847,8 +863,7 @@ double joint_proxy_step(const Model& held, const Model& free, int k, State* s, i
   // leaves: the first guess, and the placement of a proxy not yet placed.
   State end = start;
   {
-    Workspace ws(held);
-    step(held, end, ws);
+    step(held, end, *ws);
     ProbeState& r = end.probes[k];
     r.center = target;
     r.anchor = -1;

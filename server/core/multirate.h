@@ -197,8 +197,9 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
 // the plain step and update_proxy leave, its Jacobian by central differences of whole steps,
 // backtracked; stops at |R_p| <= tol k_c (k_c the coupling's stiffness) or after `iterations`.
 // *s ends at that step, the probe with the coupling's force at p (as the served tick gives it),
-// depth and faces. Returns |R_p| / k_c (m).
-double joint_proxy_step(const Model& held, const Model& free, int k, State* s, int iterations = 8,
-                        double tol = 1e-10);
+// depth and faces. ws: a workspace of `held` to step in (nullptr: one of its own). Returns
+// |R_p| / k_c (m).
+double joint_proxy_step(const Model& held, const Model& free, int k, State* s,
+                        Workspace* ws = nullptr, int iterations = 8, double tol = 1e-10);
 
 }  // namespace conica
