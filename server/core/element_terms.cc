@@ -1,6 +1,7 @@
 // The element terms (core/element_terms.h): energies, forces and what the implicit system keeps.
 #include "core/element_terms.h"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -148,5 +149,85 @@ void ShearTerm::prepare_system(const Model& m, double h2, ElementScratch& E) {
 void element_forces(const Model& m, const State& s, Workspace& ws) {
   for_each_term(m, [&](auto term) { term.add_forces(m, s.x, ws.elements, ws.force); });
 }
+
+template <int N>
+void element_term_forces(const Model& m, int e, const Vec3* x, Vec3* f) {
+  for (int a = 0; a < N; ++a) f[a].setZero();
+  const int nt = static_cast<int>(m.tetrahedra.size());
+  if (m.bulk_modulus > 0) {
+    Vec3 g[N], gq[64];
+    double vq[8];
+    const bool spread = N == 8 && m.spread_modulus > 0;
+    double v, v0;
+    if constexpr (N == 4) {
+      v = tet_volume_gradient(x, g);
+      v0 = m.tet_rest_volume[e];
+    } else {
+      v = hex_volume_gradient(x, g, spread ? vq : nullptr, spread ? gq : nullptr);
+      v0 = m.hex_rest_volume[e];
+    }
+    const double p = -m.bulk_modulus / std::abs(v0) * (v - v0);
+    for (int a = 0; a < N; ++a) f[a] += p * g[a];
+    if constexpr (N == 8) {
+      if (spread) {  // as VolumeTerm::add_forces
+        const double cs = 8 * m.spread_modulus / std::abs(v0);
+        const double* v0q = m.hex_rest_gauss.data() + 8 * e;
+        const double mean = (v - v0) / 8;
+        for (int q = 0; q < 8; ++q) {
+          const double dq = -cs * ((vq[q] - v0q[q]) - mean);
+          for (int a = 0; a < 8; ++a) f[a] += dq * (gq[8 * q + a] - g[a] / 8);
+        }
+      }
+    }
+  }
+  if (m.shear_modulus > 0) {
+    const int points = N == 4 ? 1 : 8;
+    const Vec3* b = m.shear_b.data() + (N == 4 ? 4 * e : 4 * nt + 64 * e);
+    const double* v0 = m.shear_v0.data() + (N == 4 ? e : nt + 8 * e);
+    for (int q = 0; q < points; ++q, b += N) {
+      Mat3 F = Mat3::Zero();
+      for (int a = 0; a < N; ++a) F.noalias() += x[a] * b[a].transpose();
+      Mat3 P;
+      double c;
+      isochoric_yeoh(F.data(), m.shear_modulus, m.shear_stiffening, P.data(), &c);
+      P *= v0[q];
+      for (int a = 0; a < N; ++a) f[a].noalias() -= P * b[a];
+    }
+  }
+}
+
+template <int N>
+void element_term_hessian(const Model& m, int e, const Vec3* x, double* H) {
+  constexpr int n = 3 * N;
+  // The step: a millionth of the element's size (its bounding box's largest side).
+  Vec3 lo = x[0], hi = x[0];
+  for (int a = 1; a < N; ++a) {
+    lo = lo.cwiseMin(x[a]);
+    hi = hi.cwiseMax(x[a]);
+  }
+  const double eps = 1e-6 * std::max((hi - lo).maxCoeff(), 1e-12);
+  Vec3 y[N], fp[N], fm[N];
+  for (int a = 0; a < N; ++a) y[a] = x[a];
+  for (int col = 0; col < n; ++col) {
+    Vec3& yc = y[col / 3];
+    const double keep = yc[col % 3];
+    yc[col % 3] = keep + eps;
+    element_term_forces<N>(m, e, y, fp);
+    yc[col % 3] = keep - eps;
+    element_term_forces<N>(m, e, y, fm);
+    yc[col % 3] = keep;
+    for (int a = 0; a < N; ++a)
+      for (int i = 0; i < 3; ++i)
+        H[(3 * a + i) * n + col] = -(fp[a][i] - fm[a][i]) / (2 * eps);  // H = -df/dx
+  }
+  for (int r = 0; r < n; ++r)
+    for (int c = r + 1; c < n; ++c)
+      H[r * n + c] = H[c * n + r] = 0.5 * (H[r * n + c] + H[c * n + r]);
+}
+
+template void element_term_forces<4>(const Model&, int, const Vec3*, Vec3*);
+template void element_term_forces<8>(const Model&, int, const Vec3*, Vec3*);
+template void element_term_hessian<4>(const Model&, int, const Vec3*, double*);
+template void element_term_hessian<8>(const Model&, int, const Vec3*, double*);
 
 }  // namespace conica

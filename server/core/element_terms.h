@@ -201,4 +201,17 @@ void for_each_term_reversed(const Model& m, F&& f) {
 // The element stage: every term's forces added to ws.force.
 void element_forces(const Model& m, const State& s, Workspace& ws);
 
+// The forces of every element term on element e of its kind (N = 4: tetrahedron e, N = 8:
+// hexahedron e) with its nodes at x[0..N) (N), into f[0..N) (overwritten).
+template <int N>
+void element_term_forces(const Model& m, int e, const Vec3* x, Vec3* f);
+
+// The exact Hessian of the element terms' energy on element e of its kind at its nodes' positions
+// x[0..N) (N/m), by central differences of element_term_forces (the terms' own second
+// derivatives: the volume term's (V - V0) curvature and the shear term's isochoric coupling that
+// the implicit system's Gauss-Newton blocks leave out), symmetrised, into H (row-major 3N x 3N,
+// H[(3 a + i) 3N + 3 b + k] = d^2 W / dx_ai dx_bk). May be indefinite.
+template <int N>
+void element_term_hessian(const Model& m, int e, const Vec3* x, double* H);
+
 }  // namespace conica

@@ -131,6 +131,8 @@ class LocalModelBuilder {
   };
   SystemFactor* last(Workspace& ws);
   std::unique_ptr<SystemFactor> factor_;
+  std::unique_ptr<SystemFactor> exact_;  // W's factor (tetrahedra's terms: exact Hessians)
+  bool exact_ok_ = false;                // exact_ holds the last refactor's system
   std::vector<double> r_, z_;
   std::vector<std::pair<double, int>> near_;
   std::vector<std::vector<Mat3>> held_;  // (probes x nodes) N/m: B0 of the factored system

@@ -46,8 +46,13 @@ class SystemFactor {
   SystemFactor& operator=(const SystemFactor&) = delete;
 
   // The values of A_f at the system ws.system, ws.elements and ws.contact describe (after the
-  // Newton iteration's coefficients and prepare_system).
-  void assemble(const Model& m, const Workspace& ws);
+  // Newton iteration's coefficients and prepare_system). With exact_at (the positions the system
+  // was prepared at), the tetrahedra's element-term blocks are their exact Hessians there
+  // (element_term_hessian) instead of the Gauss-Newton ones: the tangent a converged step
+  // follows, for the multi-rate body's local compliance (core/multirate.h); it may be indefinite.
+  // Hexahedra keep the Gauss-Newton blocks (differencing their Gauss points costs several
+  // factorisations).
+  void assemble(const Model& m, const Workspace& ws, const std::vector<Vec3>* exact_at = nullptr);
   // Numeric factorisation of the assembled values; false when A_f is not positive definite
   // (the factor is then unusable).
   bool factorize();
