@@ -86,7 +86,8 @@ struct SolverOptions {
   // compliance of its last step. 0: the body steps every tick. Implicit Euler, node contact.
   double body_rate_hz = 0;  // Hz
   double body_reach = 0;    // m, the local model's region beyond the probe radius (0: half of it)
-  double mass_damping = 0;  // 1/s: Rayleigh mass-proportional damping on all nodes
+  bool exact_compliance = true;  // multi-rate: W from the tetrahedra's exact element Hessians
+  double mass_damping = 0;       // 1/s: Rayleigh mass-proportional damping on all nodes
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
   double min_length_fraction = 0.05;                  // hard stop: no spring shorter than this x l0
   bool hard_stop = true;                              // off only to show what happens without it

@@ -153,7 +153,8 @@ SurfaceScratch::SurfaceScratch(const Model& m)
 
 LocalModelBuilder::LocalModelBuilder(const Model& m)
     : factor_(std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)),
-      exact_((m.bulk_modulus > 0 || m.shear_modulus > 0) && !m.tetrahedra.empty()
+      exact_(m.options.exact_compliance && (m.bulk_modulus > 0 || m.shear_modulus > 0) &&
+                     !m.tetrahedra.empty()
                  ? std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)
                  : nullptr),
       held_(m.probes.size(), std::vector<Mat3>(m.num_nodes(), Mat3::Zero())),
