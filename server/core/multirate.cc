@@ -771,7 +771,11 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   }
   lm.fresh = false;
   const int evaluations_before = evaluations;
-  const bool jointly = joint && probe->active && probe->proxy_placed;
+  // An estimate (lm.valid false: W a diagonal guess, no body step's model within reach) keeps the
+  // proxy held: solving it jointly against a guessed compliance buys no accuracy, and the soak's
+  // churning client, answered from estimates almost every tick, paid 12 -> 67 us of tick CPU at
+  // p50 for it (bench_multirate --churn).
+  const bool jointly = joint && lm.valid && probe->active && probe->proxy_placed;
   if (jointly) {
     const Vec3 updated = probe->proxy, velocity = probe->proxy_velocity;
     joint_solve();
