@@ -607,7 +607,9 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // of the pair blocks) and d R_p / d x_a = -B_a^T:
   //   [ J        -W B ] [dx]   [-R_x]
   //   [ -B^T  H - K_l ] [dp] = [-R_p],   J = I - W Q (as above), H the coupling's Hessian,
-  // K_l the layer's stiffness for the tool (nodes held). With u = J^-1 (-R_x), Y = J^-1 (-W B):
+  // K_l the layer's stiffness for the tool with the nodes held, its positive semi-definite part
+  // (the pressure term -sum p' n n^T, consistent with the pair blocks: the Newton matrix is then
+  // the Hessian of the energy below, positive definite). With u = J^-1 (-R_x), Y = J^-1 (-W B):
   //   S dp = -R_p + B^T u,  S = H - K_l + B^T Y,  dx = u - Y dp,
   // three more solves with J's factor per iteration. S is the proxy's stiffness with the region
   // giving way as (1) says: the device's stiffness dF/dt = H (S^-1 H - I) (H (H - K_l)^-1 K_l when
@@ -678,8 +680,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
         }
         if (n > 0) lu_solve(lm.jac.data(), n, ld, piv, y);
       }
-      // S = H - K_l + B^T Y and the right-hand side -R_p + B^T u (K_l exact where H - K_l is
-      // positive definite, else its positive part, as update_proxy takes it).
+      // S = H - K_l + B^T Y and the right-hand side -R_p + B^T u.
       const Mat3 H = link.hessian(probe->proxy - t);
       Mat3 Jpp = H - tool.stiffness_psd;
       S = Jpp;
