@@ -12,6 +12,21 @@ namespace {
 
 // Shear stiffness forces of one element on N nodes with `points` tetrahedra / Gauss points
 // (core/volume.h), added to force; advances b, v0 and coef past the element.
+// The shear forces of one tetrahedron or Gauss point (shape gradients b[0..N), rest share v0)
+// with its element's nodes at x[0..N), subtracted into f[0..N); returns isochoric_yeoh's
+// Laplacian coefficient there.
+template <int N>
+double shear_point(const Model& m, const Vec3* x, const Vec3* b, double v0, Vec3* f) {
+  Mat3 F = Mat3::Zero();
+  for (int a = 0; a < N; ++a) F.noalias() += x[a] * b[a].transpose();
+  Mat3 P;
+  double c;
+  isochoric_yeoh(F.data(), m.shear_modulus, m.shear_stiffening, P.data(), &c);
+  P *= v0;
+  for (int a = 0; a < N; ++a) f[a].noalias() -= P * b[a];
+  return c;
+}
+
 template <int N>
 void shear_element(const Model& m, const std::vector<Vec3>& xs, const std::array<int, N>& nodes,
                    int points, const Vec3*& b, const double*& v0, double*& coef,
@@ -22,16 +37,35 @@ void shear_element(const Model& m, const std::vector<Vec3>& xs, const std::array
     f[a].setZero();
   }
   for (int q = 0; q < points; ++q, b += N) {
-    Mat3 F = Mat3::Zero();
-    for (int a = 0; a < N; ++a) F.noalias() += x[a] * b[a].transpose();
-    Mat3 P;
-    double c;
-    isochoric_yeoh(F.data(), m.shear_modulus, m.shear_stiffening, P.data(), &c);
-    P *= *v0;
-    for (int a = 0; a < N; ++a) f[a].noalias() -= P * b[a];
+    const double c = shear_point<N>(m, x, b, *v0, f);
     *coef++ = *v0++ * m.shear_modulus * c;
   }
   for (int a = 0; a < N; ++a) force[nodes[a]] += f[a];
+}
+
+// The volume term's forces on one element of rest volume v0 whose volume is v, dV/dx_a = g[a]
+// (and, hexahedra with the spread, its Gauss-point shares vq[q] of rest share v0q[q] and their
+// gradients gq[8 q + a], replaced by G_q = g_q - g / 8), each node's share passed to add(a, f_a)
+// in the order the forces have always been summed (pressure first, then each Gauss point's
+// spread). Returns kappa / |V0|.
+template <int N, typename Add>
+double volume_forces(const Model& m, double v, double v0, const Vec3* g, const double* vq,
+                     const double* v0q, Vec3* gq, Add&& add) {
+  const double coef = m.bulk_modulus / std::abs(v0);
+  const double p = -coef * (v - v0);
+  for (int a = 0; a < N; ++a) add(a, Vec3(p * g[a]));
+  if (!gq) return coef;
+  // Spread: force -(8 kappa_s / |V0|) sum_q d_q G_q with G_q = g_q - g / 8.
+  const double cs = 8 * m.spread_modulus / std::abs(v0);
+  const double mean = (v - v0) / 8;
+  for (int q = 0; q < 8; ++q) {
+    const double dq = -cs * ((vq[q] - v0q[q]) - mean);
+    for (int a = 0; a < 8; ++a) {
+      gq[8 * q + a] -= g[a] / 8;
+      add(a, Vec3(dq * gq[8 * q + a]));
+    }
+  }
+  return coef;
 }
 
 }  // namespace
@@ -44,37 +78,24 @@ void VolumeTerm::add_forces(const Model& m, const std::vector<Vec3>& x, ElementS
   Vec3* g = E.volume_grad.data();
   double* coef = E.volume_coef.data();
   double vq[8];
-  auto element = [&](const int* nodes, int n, double v0, Vec3* gq) {
-    const double v = element_volume(x, nodes, n, g, gq ? vq : nullptr, gq);
-    *coef = m.bulk_modulus / std::abs(v0);
-    const double p = -*coef * (v - v0);
-    for (int a = 0; a < n; ++a) force[nodes[a]] += p * g[a];
-    g += n;
-    ++coef;
-    return v;
-  };
   const int nt = static_cast<int>(m.tetrahedra.size());
-  for (int e = 0; e < nt; ++e) element(m.tetrahedra[e].data(), 4, m.tet_rest_volume[e], nullptr);
+  for (int e = 0; e < nt; ++e) {
+    const int* nodes = m.tetrahedra[e].data();
+    const double v = element_volume(x, nodes, 4, g);
+    *coef++ = volume_forces<4>(m, v, m.tet_rest_volume[e], g, nullptr, nullptr, nullptr,
+                               [&](int a, const Vec3& f) { force[nodes[a]] += f; });
+    g += 4;
+  }
   const int nh = static_cast<int>(m.hexahedra.size());
   for (int e = 0; e < nh; ++e) {
     const int* nodes = m.hexahedra[e].data();
-    const double v0 = m.hex_rest_volume[e];
     Vec3* gq = spread ? E.spread_grad.data() + 64 * e : nullptr;
-    const Vec3* gh = g;  // this hexahedron's dV/dx
-    const double v = element(nodes, 8, v0, gq);
-    if (!spread) continue;
-    // Spread: force -(8 kappa_s / |V0|) sum_q d_q G_q with G_q = g_q - g / 8.
-    const double cs = 8 * m.spread_modulus / std::abs(v0);
-    E.spread_coef[e] = cs;
-    const double* v0q = m.hex_rest_gauss.data() + 8 * e;
-    const double mean = (v - v0) / 8;
-    for (int q = 0; q < 8; ++q) {
-      const double dq = -cs * ((vq[q] - v0q[q]) - mean);
-      for (int a = 0; a < 8; ++a) {
-        gq[8 * q + a] -= gh[a] / 8;
-        force[nodes[a]] += dq * gq[8 * q + a];
-      }
-    }
+    const double v = element_volume(x, nodes, 8, g, gq ? vq : nullptr, gq);
+    const double v0 = m.hex_rest_volume[e];
+    *coef++ = volume_forces<8>(m, v, v0, g, vq, spread ? m.hex_rest_gauss.data() + 8 * e : nullptr,
+                               gq, [&](int a, const Vec3& f) { force[nodes[a]] += f; });
+    if (spread) E.spread_coef[e] = 8 * m.spread_modulus / std::abs(v0);
+    g += 8;
   }
 }
 
@@ -157,42 +178,23 @@ void element_term_forces(const Model& m, int e, const Vec3* x, Vec3* f) {
   if (m.bulk_modulus > 0) {
     Vec3 g[N], gq[64];
     double vq[8];
-    const bool spread = N == 8 && m.spread_modulus > 0;
-    double v, v0;
+    auto add = [&](int a, const Vec3& fa) { f[a] += fa; };
     if constexpr (N == 4) {
-      v = tet_volume_gradient(x, g);
-      v0 = m.tet_rest_volume[e];
+      volume_forces<4>(m, tet_volume_gradient(x, g), m.tet_rest_volume[e], g, nullptr, nullptr,
+                       nullptr, add);
     } else {
-      v = hex_volume_gradient(x, g, spread ? vq : nullptr, spread ? gq : nullptr);
-      v0 = m.hex_rest_volume[e];
-    }
-    const double p = -m.bulk_modulus / std::abs(v0) * (v - v0);
-    for (int a = 0; a < N; ++a) f[a] += p * g[a];
-    if constexpr (N == 8) {
-      if (spread) {  // as VolumeTerm::add_forces
-        const double cs = 8 * m.spread_modulus / std::abs(v0);
-        const double* v0q = m.hex_rest_gauss.data() + 8 * e;
-        const double mean = (v - v0) / 8;
-        for (int q = 0; q < 8; ++q) {
-          const double dq = -cs * ((vq[q] - v0q[q]) - mean);
-          for (int a = 0; a < 8; ++a) f[a] += dq * (gq[8 * q + a] - g[a] / 8);
-        }
-      }
+      const bool spread = m.spread_modulus > 0;
+      const double v = hex_volume_gradient(x, g, spread ? vq : nullptr, spread ? gq : nullptr);
+      volume_forces<8>(m, v, m.hex_rest_volume[e], g, vq,
+                       spread ? m.hex_rest_gauss.data() + 8 * e : nullptr, spread ? gq : nullptr,
+                       add);
     }
   }
   if (m.shear_modulus > 0) {
     const int points = N == 4 ? 1 : 8;
     const Vec3* b = m.shear_b.data() + (N == 4 ? 4 * e : 4 * nt + 64 * e);
     const double* v0 = m.shear_v0.data() + (N == 4 ? e : nt + 8 * e);
-    for (int q = 0; q < points; ++q, b += N) {
-      Mat3 F = Mat3::Zero();
-      for (int a = 0; a < N; ++a) F.noalias() += x[a] * b[a].transpose();
-      Mat3 P;
-      double c;
-      isochoric_yeoh(F.data(), m.shear_modulus, m.shear_stiffening, P.data(), &c);
-      P *= v0[q];
-      for (int a = 0; a < N; ++a) f[a].noalias() -= P * b[a];
-    }
+    for (int q = 0; q < points; ++q, b += N) shear_point<N>(m, x, b, v0[q], f);
   }
 }
 

@@ -1,8 +1,6 @@
 #include "core/multirate.h"
 
-#include <Eigen/Cholesky>
 #include <Eigen/Dense>
-#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -139,6 +137,7 @@ LocalModel::LocalModel(int cap)
       jac(9 * static_cast<size_t>(cap) * cap, 0.0),
       rhs(3 * static_cast<size_t>(cap), 0.0),
       g(12 * static_cast<size_t>(cap), 0.0),
+      wdx(3 * static_cast<size_t>(cap), 0.0),
       pivot(4 * static_cast<size_t>(cap), 0),
       coupled_count(cap, 0),
       coupled_node(static_cast<size_t>(kMaxCoupled) * cap, -1),
@@ -184,10 +183,9 @@ bool LocalModelBuilder::refactor(const Model& m, State& s, Workspace& ws) {
   generation_ = ++factorizations_;
   // W's own factor: the tetrahedra's element terms with their exact Hessians, so that W is the
   // response a converged body step gives ((1) in haptic_contact); the Gauss-Newton factor above
-  // stays the body's
-  // preconditioner (the exact one, handed over, took the liver's CG from 4.3 to 11.6 iterations
-  // per Newton iteration). Where the exact tangent is not positive definite, W comes from the
-  // Gauss-Newton factor.
+  // stays the body's preconditioner (the exact one, handed over, took the liver's CG from 4.3 to
+  // 11.6 iterations per Newton iteration). Where the exact tangent is not positive definite, W
+  // comes from the Gauss-Newton factor.
   exact_ok_ = exact_ && (exact_->assemble(m, ws, &s.x), exact_->factorize());
   for (size_t k = 0; k < m.probes.size(); ++k) {  // what the contact stage put in the system
     const ProbeState& p = s.probes[k];
@@ -642,12 +640,15 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     // a descent direction for Pi, backtracked until Pi falls enough (Armijo). A merit on the
     // residuals instead stalls: the pair blocks leave out the faces' turning under the tool, which
     // the region's large motion against a small proxy step makes the leading error of R_p.
-    auto energy = [&]() {  // after residual(): tool holds the layer at this iterate
+    // After residual() (tool holds the layer at this iterate); leaves W^-1 dx in lm.wdx, what
+    // the next step's slope starts from.
+    auto energy = [&]() {
       double e = tool.energy + link.energy(probe->proxy - t);
       for (int row = 0; row < n3; ++row) {
         const double* wi = &lm.winv[row * ld];
         double z = 0;
         for (int c = 0; c < n3; ++c) z += wi[c] * lm.dx[c / 3][c % 3];
+        lm.wdx[row] = z;
         e += 0.5 * lm.dx[row / 3][row % 3] * z;
       }
       for (int q = 0; q < na; ++q) {
@@ -711,12 +712,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       }
       // Pi's slope along the step: (W^-1 dx - B0 dx + f0 - f) . d + R_p . dp.
       double slope = rp.dot(dp);
-      for (int row = 0; row < n3; ++row) {
-        const double* wi = &lm.winv[row * ld];
-        double z = 0;
-        for (int c = 0; c < n3; ++c) z += wi[c] * lm.dx[c / 3][c % 3];
-        slope += z * lm.rhs[row];
-      }
+      for (int row = 0; row < n3; ++row) slope += lm.wdx[row] * lm.rhs[row];
       for (int q = 0; q < na; ++q) {
         const int a = act[q];
         slope += (lm.f0[a] - lm.f[a] - lm.b0[a] * lm.dx[a]).dot(lm.step[a]);

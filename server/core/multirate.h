@@ -70,7 +70,8 @@ struct LocalModel {
   std::vector<Vec3> f, dx, dx_last, step;
   std::vector<Mat3> dfdc;
   std::vector<double> jac, rhs, g;
-  std::vector<int> pivot;  // (4 capacity) LU pivots, then the active nodes
+  std::vector<double> wdx;  // (3 capacity) N: W^-1 dx at the joint solve's current iterate
+  std::vector<int> pivot;   // (4 capacity) LU pivots, then the active nodes
   // Surface contact: the layer's coupling of the region's nodes, column by column: node a's
   // entries (kMaxCoupled at most) are the nodes b with K_ba != 0 and K_ba (N/m, minus the
   // derivative of the layer's force on b with respect to a's position).
