@@ -7,9 +7,11 @@
 // kappa, G = (C11 - C12 + 3 C44) / 5 + mu (lab/calibration.h), E = 9 K G / (3 K + G),
 // nu = (3 K - 2 G) / (2 (3 K + G)), E* = E / (1 - nu^2).
 //  - uniaxial: frictionless compression of the cylinder, F / (A strain) = E.
-//  - Gent and Lindley (1959): a bonded incompressible cylinder of shape factor S = R / (2 h) has
-//    E_c = E (1 + 2 S^2): compared as the ratio of the bonded to the frictionless modulus of the
-//    same body, which does not depend on the estimate of E (compressibility lowers it).
+//  - Gent and Lindley (1959): a bonded incompressible block of shape factor S (the loaded area over
+//    the free one: R / (2 h) for a cylinder, a / (4 h) for a square prism of side a) has
+//    E_c = E (1 + 2 S^2), the same coefficient for circular and square sections: compared as the
+//    ratio of the bonded to the frictionless modulus of the same body, which does not depend on
+//    the estimate of E (compressibility lowers it). On the cylinder and on the 30 mm cube.
 //  - Sneddon (1965) / Boussinesq: a rigid frictionless flat punch of radius a pressed d into a
 //    half-space: F = 2 a E* d, and the surface outside it sinks w(r) = (2 d / pi) asin(a / r).
 //    The block is 60 x 60 x 30 mm bonded to its base (h / a = 6), so the finite layer stiffens the
@@ -117,7 +119,7 @@ void register_validate(CLI::App& app, Runner* run) {
   struct Opts {
     std::string configs = "configs/validation", out_dir = "validation-out";
     bool quick = false;
-    std::vector<std::string> cases = {"cylinder", "punch", "layer", "hertz"};
+    std::vector<std::string> cases = {"cylinder", "cube", "punch", "layer", "hertz"};
   };
   auto o = std::make_shared<Opts>();
   CLI::App* cmd = app.add_subcommand(
@@ -127,13 +129,15 @@ void register_validate(CLI::App& app, Runner* run) {
   cmd->add_option("--out-dir", o->out_dir, "folder for the curves (CSV)")->capture_default_str();
   cmd->add_flag("--quick", o->quick,
                 "the served resolutions only (no refinement study, no Hertz sphere)");
-  cmd->add_option("--case", o->cases, "cylinder, punch, layer, hertz (repeatable; default: all)")
-      ->check(CLI::IsMember({"cylinder", "punch", "layer", "hertz"}));
+  cmd->add_option("--case", o->cases,
+                  "cylinder, cube, punch, layer, hertz (repeatable; default: all)")
+      ->check(CLI::IsMember({"cylinder", "cube", "punch", "layer", "hertz"}));
   cmd->callback([o, run] {
     *run = [o]() -> int {
       const char* me = "conica-lab validate";
-      BodySpec cyl, block;
-      for (auto [name, spec] : {std::pair{"cylinder-ef30", &cyl}, {"punch-block-ef30", &block}})
+      BodySpec cyl, cube, block;
+      for (auto [name, spec] :
+           {std::pair{"cylinder-ef30", &cyl}, {"cube-ef30", &cube}, {"punch-block-ef30", &block}})
         if (std::string e = io::load_scene(o->configs + "/" + name + ".pbtxt", spec); !e.empty()) {
           std::fprintf(stderr, "%s: %s\n", me, e.c_str());
           return 2;
@@ -178,6 +182,31 @@ void register_validate(CLI::App& app, Runner* run) {
             "%+.2f %% |\n",
             r[0], r[1], n, e_app[1] / e_app[0], 1 + 2 * S * S,
             100 * (e_app[1] / e_app[0] / (1 + 2 * S * S) - 1));
+      }
+      // The bonded cube: shape factor a / (4 h) = 1/4, at the served 3 mm cells and refined (even
+      // cell counts, so the scene's centre and edge pins stay on nodes).
+      std::vector<int> cube_res = {10};
+      if (!o->quick) cube_res = {10, 14, 20};
+      if (!wanted("cube")) cube_res.clear();
+      for (int c : cube_res) {
+        const double side = 0.03, Sc = side / (4 * side);
+        BodySpec s = cube;
+        s.mesh = make_box_lattice(Vec3(side, side, side), {c, c, c});
+        double e_app[2] = {0, 0};
+        long n = 0;
+        for (int bonded = 0; bonded < 2; ++bonded) {
+          double f = 0, area = 0;
+          if (!compress_force(s, bonded, strain, &f, &area, &n, &error)) {
+            std::fprintf(stderr, "%s: cube: %s\n", me, error.c_str());
+            return 1;
+          }
+          e_app[bonded] = f / (area * strain);
+        }
+        std::printf(
+            "| bonded / frictionless cube 30 mm, strain %.3g: modulus ratio | %d x %d x %d cells "
+            "| %ld | %.4f | %.4f (Gent-Lindley 1 + 2 S^2, S = 0.25, incompressible) | %+.2f %% |\n",
+            strain, c, c, c, n, e_app[1] / e_app[0], 1 + 2 * Sc * Sc,
+            100 * (e_app[1] / e_app[0] / (1 + 2 * Sc * Sc) - 1));
       }
       // Flat punch on the block: Sneddon force and the Boussinesq surface profile, for the disc
       // of the area the punch's faces cover (radius a_eq; it tends to a as the lattice refines).
