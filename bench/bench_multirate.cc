@@ -76,6 +76,18 @@ void Row(const char* name, const Timer& t) {
               1e-3 * Percentile(t.wall_us, 0.5), 1e-3 * Percentile(t.wall_us, 1.0));
 }
 
+// The tick CPU by the layer evaluations each tick made (BENCH_*_BY_EVALUATIONS).
+void PrintByEvaluations(const std::vector<int>& evaluations, const std::vector<double>& cpu_us) {
+  for (int e = 0; e <= 24; ++e) {
+    std::vector<double> c;
+    for (size_t t = 0; t < evaluations.size() && t < cpu_us.size(); ++t)
+      if (evaluations[t] == e) c.push_back(cpu_us[t]);
+    if (!c.empty())
+      std::printf("%d evaluations: %zu ticks, CPU p50 / p90 / max %.0f / %.0f / %.0f us\n", e,
+                  c.size(), Percentile(c, 0.5), Percentile(c, 0.9), Percentile(c, 1.0));
+  }
+}
+
 // --per-tick: the served model at 1 kHz through the body thread (loop/body_worker.h, waited for
 // after each hand-over so that the run is the same on any machine) along a press (from 1 mm
 // above the top to `depth` at 10 mm/s), a 0.2 s hold, a 5 mm slide at 10 mm/s and a 0.2 s hold,
@@ -142,6 +154,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   State s = make_state(served);
   loop::BodyWorker worker(served, s);
   Timer t_tick;  // the 1 kHz thread's tick (its contact solve), not the body's step
+  std::vector<int> evaluations(ticks, 0);
   const auto start = std::chrono::steady_clock::now();
   for (int t = 0; t < ticks; ++t) {
     set_probe(s, 0, path(t));
@@ -152,6 +165,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
     t_tick.start();
     worker.tick(served, s);
     t_tick.stop();
+    evaluations[t] = worker.last_layer_evaluations();
     if (realtime)  // paced at 1 kHz: the body thread is late as it is
       std::this_thread::sleep_until(start + std::chrono::microseconds(1000 * (t + 1)));
     else
@@ -185,6 +199,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
     }
   }
   if (joint) std::printf("joint reference: largest |R_p| / k_c %.3g R\n", worst_gap / r);
+  if (std::getenv("BENCH_TICK_BY_EVALUATIONS")) PrintByEvaluations(evaluations, t_tick.cpu_us);
   std::printf(
       "per tick, press %.1f mm / hold / %s (%d ticks): largest force %.4f N; "
       "served against converged every tick: RMS %.3f %%, largest %.3f %%; %llu body steps, "
@@ -256,15 +271,7 @@ int Churn(const Model& served, int up, double seconds) {
     std::this_thread::sleep_until(start + std::chrono::microseconds(1000 * (t + 1)));
   }
   std::vector<double> ev(evaluations.begin(), evaluations.end());
-  if (std::getenv("BENCH_CHURN_BY_EVALUATIONS"))
-    for (int e = 0; e <= 24; ++e) {
-      std::vector<double> c;
-      for (int t = 0; t < ticks; ++t)
-        if (evaluations[t] == e) c.push_back(t_tick.cpu_us[t]);
-      if (!c.empty())
-        std::printf("%d evaluations: %zu ticks, CPU p50 / p90 / max %.0f / %.0f / %.0f us\n", e,
-                    c.size(), Percentile(c, 0.5), Percentile(c, 0.9), Percentile(c, 1.0));
-    }
+  if (std::getenv("BENCH_CHURN_BY_EVALUATIONS")) PrintByEvaluations(evaluations, t_tick.cpu_us);
   std::printf(
       "churn, %d ticks, %zu replies: tick CPU p50 / p99 / max %.0f / %.0f / %.0f us, reply CPU "
       "p50 / p99 / max %.0f / %.0f / %.0f us, layer evaluations per tick p50 / p99 / max %.0f / "

@@ -52,8 +52,8 @@ struct SphereTool {
     const Vec3 d = y - c;
     const double r2 = d.squaredNorm();
     if (!(r2 < R * R) || !(r2 > 0)) return false;
-    const double r = std::sqrt(r2);
-    *pen = {R - r, d / r, 1 / r};
+    const double r = std::sqrt(r2), ir = 1 / r;
+    *pen = {R - r, d * ir, ir};
     return true;
   }
 };
@@ -118,17 +118,18 @@ struct Accumulator {
     }
     const double uu[6] = {u.x() * u.x(), u.y() * u.y(), u.z() * u.z(),
                           u.x() * u.y(), u.x() * u.z(), u.y() * u.z()};
+    // With the pair blocks asked for, the lumped blocks (their row sums) and S2 (their sum) come
+    // from them in flush(): sum_b l_b = 1.
     if (stiffness) {
       s0 += w * p * pen.curvature;
       const double c1 = w * (-dp - p * pen.curvature), c2 = w * dp;
-      for (int k = 0; k < 6; ++k) {
-        S1[k] += c1 * uu[k];
-        S2[k] += c2 * uu[k];
-      }
+      for (int k = 0; k < 6; ++k) S1[k] += c1 * uu[k];
+      if (!pr)
+        for (int k = 0; k < 6; ++k) S2[k] += c2 * uu[k];
     }
     for (int a = 0; a < 3; ++a) {
       if (f[a]) fl[a] += (w * l[a] * p) * u;
-      if (b[a]) {
+      if (b[a] && !pr) {
         const double wa = w * l[a] * dp;
         for (int k = 0; k < 6; ++k) bl[a][k] += wa * uu[k];
       }
@@ -144,6 +145,13 @@ struct Accumulator {
 
   void flush() {
     if (!touched) return;
+    if (pr)  // K_aa + K_ab + K_ac, and S2 their sum over a (pairs 00 11 22 01 02 12)
+      for (int k = 0; k < 6; ++k) {
+        bl[0][k] = pl[0][k] + pl[3][k] + pl[4][k];
+        bl[1][k] = pl[1][k] + pl[3][k] + pl[5][k];
+        bl[2][k] = pl[2][k] + pl[4][k] + pl[5][k];
+        S2[k] = bl[0][k] + bl[1][k] + bl[2][k];
+      }
     out->energy += energy;
     out->force += force;
     if (terms & kToolStiffness) {

@@ -152,8 +152,20 @@ inline void ContactLayer::eval(double g, double* p, double* dp, double* psi) con
   }
   const double gc = 0.9 * g_max;
   const double gg = std::min(g, gc);
-  const double r = 1 - gg / g_max;
-  double pc = k * gg / r, dpc = k / (r * r), psic = k * g_max * (-gg - g_max * std::log(r));
+  const double x = gg / g_max, r = 1 - x, ir = 1 / r;
+  // psi = k g_max^2 (-x - log(1 - x)) = k g_max^2 sum_{n >= 2} x^n / n: the series below x = 1/8
+  // (12 terms: what is left out is below 3e-12 of the sum), which also keeps the digits
+  // that -x - log(1 - x) cancels away at a small penetration (and costs no logarithm).
+  double series = 0;
+  if (x < 0.125) {
+    constexpr double c[12] = {1.0 / 2, 1.0 / 3, 1.0 / 4,  1.0 / 5,  1.0 / 6,  1.0 / 7,
+                              1.0 / 8, 1.0 / 9, 1.0 / 10, 1.0 / 11, 1.0 / 12, 1.0 / 13};
+    double h = c[11];
+    for (int j = 10; j >= 0; --j) h = c[j] + x * h;
+    series = x * x * h;
+  }
+  double pc = k * gg * ir, dpc = k * ir * ir,
+         psic = k * g_max * g_max * (x < 0.125 ? series : -x - std::log(r));
   if (g <= gc) {
     *p = pc;
     *dp = dpc;

@@ -10,6 +10,8 @@
 #include "core/step_detail.h"
 
 namespace conica {
+static_assert(sizeof(Vec3) == 3 * sizeof(double), "a std::vector<Vec3> is 3 n contiguous doubles");
+
 namespace {
 
 // In-place LU with partial pivoting of the n x n row-major matrix a (leading dimension ld);
@@ -644,12 +646,13 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     // the next step's slope starts from.
     auto energy = [&]() {
       double e = tool.energy + link.energy(probe->proxy - t);
+      const double* dxf = lm.dx[0].data();  // dx as 3 num contiguous entries (Vec3 is unpadded)
       for (int row = 0; row < n3; ++row) {
         const double* wi = &lm.winv[row * ld];
         double z = 0;
-        for (int c = 0; c < n3; ++c) z += wi[c] * lm.dx[c / 3][c % 3];
+        for (int c = 0; c < n3; ++c) z += wi[c] * dxf[c];
         lm.wdx[row] = z;
-        e += 0.5 * lm.dx[row / 3][row % 3] * z;
+        e += 0.5 * dxf[row] * z;
       }
       for (int q = 0; q < na; ++q) {
         const int a = act[q];
