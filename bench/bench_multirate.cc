@@ -86,6 +86,15 @@ void PrintByEvaluations(const std::vector<int>& evaluations, const std::vector<d
       std::printf("%d evaluations: %zu ticks, CPU p50 / p90 / max %.0f / %.0f / %.0f us\n", e,
                   c.size(), Percentile(c, 0.5), Percentile(c, 0.9), Percentile(c, 1.0));
   }
+  // Where the costliest ticks fall: those at 8 evaluations or more, by tenth of the run.
+  const size_t n = evaluations.size(), tenth = std::max<size_t>(1, n / 10);
+  std::printf("ticks at >= 8 evaluations by tenth of the run:");
+  for (size_t b = 0; b < n; b += tenth) {
+    int count = 0;
+    for (size_t t = b; t < std::min(n, b + tenth); ++t) count += evaluations[t] >= 8;
+    std::printf(" %d", count);
+  }
+  std::printf("\n");
 }
 
 // --per-tick: the served model at 1 kHz through the body thread (loop/body_worker.h, waited for

@@ -85,6 +85,7 @@ struct Accumulator {
   Mat3* pr = nullptr;                           // the triangle's six pair blocks (null: not wanted)
   double al[3] = {0, 0, 0};
   double pl[6][6] = {};
+  double plc[6][6] = {};
   bool touched = false;
   double energy = 0, s0 = 0, depth = 0;
   Vec3 force = Vec3::Zero();
@@ -140,6 +141,14 @@ struct Accumulator {
                            wd * l[0] * l[1], wd * l[0] * l[2], wd * l[1] * l[2]};
       for (int j = 0; j < 6; ++j)
         for (int k = 0; k < 6; ++k) pl[j][k] += c[j] * uu[k];
+      {
+        const double wc = -w * p * pen.curvature;
+        const double cc[6] = {wc * l[0] * l[0], wc * l[1] * l[1], wc * l[2] * l[2],
+                              wc * l[0] * l[1], wc * l[0] * l[2], wc * l[1] * l[2]};
+        const double pu[6] = {1 - uu[0], 1 - uu[1], 1 - uu[2], -uu[3], -uu[4], -uu[5]};
+        for (int j = 0; j < 6; ++j)
+          for (int k = 0; k < 6; ++k) plc[j][k] += cc[j] * pu[k];
+      }
     }
   }
 
@@ -165,7 +174,7 @@ struct Accumulator {
       if (ar[a]) *ar[a] += al[a];
     }
     if (pr)
-      for (int j = 0; j < 6; ++j) pr[j] += symmetric(pl[j]);
+      for (int j = 0; j < 6; ++j) pr[j] += symmetric(pl[j]) + symmetric(plc[j]);
   }
 };
 

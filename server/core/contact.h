@@ -228,11 +228,14 @@ double contact_modulus(const Model& model);
 // When node_area is given, adds to node_area[i] each node's share int l_i dA of the surface
 // inside the tool (m^2).
 // When node_pair is given (with tris), adds to node_pair[6 q + j] the pair blocks of the q-th
-// listed triangle, K_ab = sum w lambda_a lambda_b p' n n^T for its corners (a, b) = (0, 0),
-// (1, 1), (2, 2), (0, 1), (0, 2), (1, 2) (K_ba = K_ab): minus the derivative of the layer's force
-// on corner a with respect to corner b's position (its pressure term, the one the lumped blocks
-// sum: node_block of a corner is the sum of its row), for a Newton method on the nodes that
-// converges as the exact one does.
+// listed triangle, K_ab = sum w lambda_a lambda_b (p' n n^T - p kappa (I - n n^T)) for its
+// corners (a, b) = (0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2) (K_ba = K_ab; kappa the tool
+// surface's curvature, 1 / r on a sphere, 0 on a punch or plane): minus the derivative of the
+// layer's force on corner a with respect to corner b's position, its pressure term (the one the
+// lumped blocks sum: node_block is the pressure term's row sum, positive semi-definite) and the
+// turning of the push's direction around the sphere; the faces' own turning is left out. Summed
+// over every pair they are minus the tool's exact stiffness. For a Newton method on the nodes
+// and the proxy together (core/multirate.cc).
 void tool_contact(const Model& model, int probe, double radius, const Vec3& pose,
                   const std::vector<Vec3>& x, const int* tris, int n, ToolContact* out,
                   Vec3* node_force = nullptr, Mat3* node_block = nullptr, unsigned terms = kToolAll,

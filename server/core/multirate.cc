@@ -405,6 +405,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
 
   ContactCandidates* cand = layer ? &surface->candidates[k] : nullptr;
   ToolContact tool;                      // the layer's side of the tool at the last evaluation
+  bool pairs_complete = false;           // the last evaluation's pair blocks all in the region
   unsigned tool_terms = kToolForceOnly;  // the joint solve asks for the tool's stiffness
   if (layer)  // the region's indices by node, for the layer's pair blocks (reset on the way out)
     for (int a = 0; a < num; ++a) surface->region[lm.nodes[a]] = a;
@@ -460,6 +461,17 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
           complete = couple(ra, rb, K) && (ra == rb || couple(rb, ra, K));
         }
       }
+      // B_a = d f_a / d p: the row sums of the pair blocks, which carry the sphere's curvature
+      // term besides the pressure term of the lumped blocks (tool_contact's node_pair), so that
+      // the joint Newton matrix is the Jacobian of the terms it keeps.
+      pairs_complete = complete;
+      if (complete)
+        for (int a = 0; a < num; ++a) {
+          Mat3 sum = Mat3::Zero();
+          const int base = a * LocalModel::kMaxCoupled;
+          for (int e = 0; e < lm.coupled_count[a]; ++e) sum += lm.coupled[base + e];
+          lm.dfdc[a] = -sum;
+        }
       if (!complete)  // the lumped blocks alone
         for (int a = 0; a < num; ++a) {
           lm.coupled_count[a] = 1;
@@ -603,13 +615,18 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // Surface contact, frictionless and unbonded: the proxy p and the region solved together, (1)
   // and the proxy's equilibrium R_p = F_c(p - t) - F_l(p, x) = 0 (F_c the coupling's force at the
   // device target t, F_l the layer's push on the tool), by Newton on the Schur complement in p.
-  // The layer's forces depend on x - p only, so d f_a / d p = B_a (its lumped block, the row sum
-  // of the pair blocks) and d R_p / d x_a = -B_a^T:
+  // The layer's forces depend on x - p only, so d f_a / d p = B_a (the row sum of the pair
+  // blocks) and d R_p / d x_a = -B_a^T:
   //   [ J        -W B ] [dx]   [-R_x]
   //   [ -B^T  H - K_l ] [dp] = [-R_p],   J = I - W Q (as above), H the coupling's Hessian,
-  // K_l the layer's stiffness for the tool with the nodes held, its positive semi-definite part
-  // (the pressure term -sum p' n n^T, consistent with the pair blocks: the Newton matrix is then
-  // the Hessian of the energy below, positive definite). With u = J^-1 (-R_x), Y = J^-1 (-W B):
+  // K_l the layer's stiffness for the tool with the nodes held. The pair blocks carry the
+  // pressure term sum p' n n^T and the sphere's curvature term -sum p / r (I - n n^T), and K_l
+  // their sum (the tool's exact stiffness), so that the Newton matrix is the Hessian of the
+  // energy below less the faces' turning under the tool. The curvature term is what a slide
+  // needs: without it (the pressure term alone, a positive definite matrix) the phantom's
+  // per-tick bench took 8 evaluations on 55 ticks of its slide (bench_multirate
+  // BENCH_TICK_BY_EVALUATIONS), with it at most 6 anywhere. Where a pair block falls outside the
+  // region, B and K_l keep the pressure term alone. With u = J^-1 (-R_x), Y = J^-1 (-W B):
   //   S dp = -R_p + B^T u,  S = H - K_l + B^T Y,  dx = u - Y dp,
   // three more solves with J's factor per iteration. S is the proxy's stiffness with the region
   // giving way as (1) says: the device's stiffness dF/dt = H (S^-1 H - I) (H (H - K_l)^-1 K_l when
@@ -686,7 +703,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       }
       // S = H - K_l + B^T Y and the right-hand side -R_p + B^T u.
       const Mat3 H = link.hessian(probe->proxy - t);
-      Mat3 Jpp = H - tool.stiffness_psd;
+      Mat3 Jpp = H - (pairs_complete ? tool.stiffness : tool.stiffness_psd);
       S = Jpp;
       rhs_p = -rp;
       for (int q = 0; q < na; ++q) {
