@@ -663,7 +663,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     // the next step's slope starts from.
     auto energy = [&]() {
       double e = tool.energy + link.energy(probe->proxy - t);
-      const double* dxf = lm.dx[0].data();  // dx as 3 num contiguous entries (Vec3 is unpadded)
+      const double* dxf = reinterpret_cast<const double*>(lm.dx.data());  // 3 num entries
       for (int row = 0; row < n3; ++row) {
         const double* wi = &lm.winv[row * ld];
         double z = 0;
