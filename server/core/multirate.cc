@@ -133,6 +133,8 @@ LocalModel::LocalModel(int cap)
       winv(9 * static_cast<size_t>(cap) * cap, 0.0),
       f(cap, Vec3::Zero()),
       dx(cap, Vec3::Zero()),
+      u_free(cap, Vec3::Zero()),
+      wu(3 * static_cast<size_t>(cap), 0.0),
       dx_last(cap, Vec3::Zero()),
       step(cap, Vec3::Zero()),
       dfdc(cap, Mat3::Zero()),
@@ -298,6 +300,22 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
     std::copy(reg.winv.begin() + static_cast<size_t>(row) * n3,
               reg.winv.begin() + static_cast<size_t>(row + 1) * n3, lm->winv.begin() + row * ld);
   }
+  // The region's free motion over the next body step: A^-1 h M v (the momentum the body carries,
+  // no force changed; W / h^2 = A^-1), one solve of the whole body. Without it the answers
+  // between hand-overs pushed a region at rest where the body's nodes were moving on, and rose
+  // 2.8 times as steeply as the converged body's in the liver's early press, a sawtooth at the
+  // body's rate that each hand-over cut back (docs/performance.md).
+  for (int a = 0; a < num; ++a) lm->u_free[a].setZero();
+  if (num > 0) {
+    r_.assign(static_cast<size_t>(n), 0.0);
+    z_.resize(std::max(z_.size(), static_cast<size_t>(n)));
+    for (int i = 0; i < nn; ++i)
+      for (int c = 0; c < 3; ++c) r_[c * nn + i] = lm->h * m.mass[i] * s.v[i][c];
+    (exact_ok_ ? exact_.get() : last(ws))->solve_many(r_.data(), z_.data(), 1);
+    for (int a = 0; a < num; ++a)
+      for (int c = 0; c < 3; ++c) lm->u_free[a][c] = z_[c * nn + lm->nodes[a]];
+  }
+  lm->ticks = 0;
   lm->valid = true;
   return true;
 }
@@ -390,6 +408,11 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // (LocalModel::layer_budget: 8.)
   const int max_layer_evaluations = lm.layer_budget;
   int evaluations = 0;
+  // The base state moves on by its free motion (LocalModel::u_free), in proportion to the time
+  // since the hand-over: (1) becomes R = dx - frac u_free - W [f - f0 + B0 dx], the energy below
+  // gains -(W^-1 frac u_free) . dx.
+  const double frac = lm.valid && lm.h > 0 ? lm.ticks * m.options.dt / lm.h : 0.0;
+  ++lm.ticks;
   const int num = lm.num, n3 = 3 * num, ld = 3 * lm.capacity;
   const bool layer = m.probes[k].contact == ContactModel::kSurface && x && surface;
   probe->center = center;
@@ -507,7 +530,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
         const double* wr = &lm.w[row * ld + 3 * b];
         s += wr[0] * q[0] + wr[1] * q[1] + wr[2] * q[2];
       }
-      lm.rhs[row] = lm.dx[row / 3][row % 3] - s;
+      lm.rhs[row] = lm.dx[row / 3][row % 3] - frac * lm.u_free[row / 3][row % 3] - s;
       worst = std::max(worst, std::abs(lm.rhs[row]));
     }
     return worst;
@@ -637,6 +660,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   Vec3 rp = Vec3::Zero();  // R_p
   Mat3 S = Mat3::Zero();   // the Schur complement of the last factored iterate
   bool have_s = false;
+  double* wu = lm.wu.data();
   auto joint_solve = [&]() {
     evaluations = 0;
     tool_terms = kToolAll;
@@ -647,6 +671,12 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     const double max_dp = 0.05 * R;  // m, a Newton step's proxy move at most
     res = residual();
     const double kpp = link.k + std::max(0.0, -tool.stiffness_psd.trace() / 3);
+    for (int row = 0; row < n3; ++row) {
+      double z = 0;
+      if (frac > 0)
+        for (int c = 0; c < n3; ++c) z += lm.winv[row * ld + c] * frac * lm.u_free[c / 3][c % 3];
+      wu[row] = z;
+    }
     auto merit = [&]() {
       rp = link.force(probe->proxy - t) - tool.force;
       return std::max(res, rp.cwiseAbs().maxCoeff() / kpp);
@@ -655,14 +685,17 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     // The joint system is the stationarity of the energy
     //   Pi(dx, p) = 1/2 dx^T (W^-1 - B0) dx + f0^T dx + E_l(x0 + dx, p) + E_c(p - t)
     // (its gradient is W^-1 R_x in dx and R_p in p), and the Newton matrix premultiplied by
-    // diag(W^-1, I) is its Hessian with the layer's pair blocks, positive definite: each step is
-    // a descent direction for Pi, backtracked until Pi falls enough (Armijo). A merit on the
-    // residuals instead stalls: the pair blocks leave out the faces' turning under the tool, which
-    // the region's large motion against a small proxy step makes the leading error of R_p.
+    // diag(W^-1, I) is its Hessian with the layer's pair blocks (less the faces' turning): each
+    // step where that matrix is positive definite is a descent direction for Pi, backtracked
+    // until Pi falls enough (Armijo); a step that is not (slope >= 0) ends the solve. A merit on
+    // the residuals instead stalled (measured when the pair blocks held the pressure term
+    // alone): what they leave out is, with the region's large motion against a small proxy
+    // step, the leading error of R_p.
     // After residual() (tool holds the layer at this iterate); leaves W^-1 dx in lm.wdx, what
     // the next step's slope starts from.
     auto energy = [&]() {
       double e = tool.energy + link.energy(probe->proxy - t);
+      for (int row = 0; row < n3; ++row) e -= wu[row] * lm.dx[row / 3][row % 3];
       const double* dxf = reinterpret_cast<const double*>(lm.dx.data());  // 3 num entries
       for (int row = 0; row < n3; ++row) {
         const double* wi = &lm.winv[row * ld];
@@ -677,7 +710,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       }
       return e;
     };
-    double pi = energy();
+    double pi = energy();     // (wu: W^-1 times the base state's free motion so far, below)
     double* u = lm.g.data();  // then the three columns of Y, each ld long
     // At the current iterate: J's factor, u, Y, S and the right-hand side of S dp.
     Vec3 rhs_p;
@@ -732,6 +765,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       }
       // Pi's slope along the step: (W^-1 dx - B0 dx + f0 - f) . d + R_p . dp.
       double slope = rp.dot(dp);
+      for (int row = 0; row < n3; ++row) slope -= wu[row] * lm.rhs[row];
       for (int row = 0; row < n3; ++row) slope += lm.wdx[row] * lm.rhs[row];
       for (int q = 0; q < na; ++q) {
         const int a = act[q];

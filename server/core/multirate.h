@@ -79,6 +79,12 @@ struct LocalModel {
   std::vector<int> coupled_count, coupled_node;  // (capacity), (kMaxCoupled capacity)
   std::vector<Mat3> coupled;                     // (kMaxCoupled capacity)
   bool fresh = false;                            // dx was reset (a new region or body state)
+  // The base state's free motion: the region's displacement over one body step from the
+  // momentum the body carries with no force changed, A^-1 h M v (build()); the answers move the
+  // base along it in proportion to the time since the hand-over (haptic_contact).
+  std::vector<Vec3> u_free;  // (capacity) m
+  int ticks = 0;             // answers since the model was handed over
+  std::vector<double> wu;    // (3 capacity) N: W^-1 times the free motion so far (scratch)
   // Surface contact: each solve stops at this much node motion (fraction of the tool radius) or
   // after this many layer evaluations (haptic_contact says why these; tests ask for more).
   double layer_tolerance = 1e-4;

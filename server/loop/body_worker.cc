@@ -118,6 +118,11 @@ BodyStats BodyWorker::stats() const {
 
 void BodyWorker::tick(const Model& served, State& s) {
   if (state_.load(std::memory_order_acquire) == kDone) {
+    // The handed-over state is the body's at its kick-off plus one body step; a step that came
+    // late hands over a state that many ticks old, which the answers' free motion then starts
+    // from (LocalModel::ticks).
+    const int age = std::max(0, since_ - every_);
+    for (LocalModel& lm : snap_[back_].local) lm.ticks = age;
     std::swap(front_, back_);
     std::copy(snap_[front_].x.begin(), snap_[front_].x.end(), s.x.begin());
     ++body_steps_;
