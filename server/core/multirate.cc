@@ -411,8 +411,9 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // The base state moves on by its free motion (LocalModel::u_free), in proportion to the time
   // since the hand-over: (1) becomes R = dx - frac u_free - W [f - f0 + B0 dx], the energy below
   // gains -(W^-1 frac u_free) . dx.
-  // At most three body steps of it: a stalled body's state is not extrapolated further.
-  const double frac = lm.valid && lm.h > 0 ? std::min(3.0, lm.ticks * m.options.dt / lm.h) : 0.0;
+  // At most one body step of it; a model handed over late (LocalModel::ticks < 0) moves none.
+  const double frac =
+      lm.valid && lm.h > 0 ? std::clamp(lm.ticks * m.options.dt / lm.h, 0.0, 1.0) : 0.0;
   ++lm.ticks;
   const int num = lm.num, n3 = 3 * num, ld = 3 * lm.capacity;
   const bool layer = m.probes[k].contact == ContactModel::kSurface && x && surface;

@@ -83,7 +83,7 @@ struct LocalModel {
   // momentum the body carries with no force changed, A^-1 h M v (build()); the answers move the
   // base along it in proportion to the time since the hand-over (haptic_contact).
   std::vector<Vec3> u_free;  // (capacity) m
-  int ticks = 0;             // answers since the model was handed over
+  int ticks = 0;             // answers since the model was handed over (< 0: handed over late)
   std::vector<double> wu;    // (3 capacity) N: W^-1 times the free motion so far (scratch)
   // Surface contact: each solve stops at this much node motion (fraction of the tool radius) or
   // after this many layer evaluations (haptic_contact says why these; tests ask for more).
