@@ -79,6 +79,18 @@ bool compress_force(BodySpec spec, bool bonded, double strain, double* force, do
   return true;
 }
 
+// The apparent moduli F / (A strain) of spec compressed to `strain` between frictionless
+// (e_app[0]) and bonded (e_app[1]) plates, over the lattice's rest cross-section.
+bool apparent_moduli(const BodySpec& spec, double strain, double e_app[2], long* nodes,
+                     std::string* error) {
+  for (int bonded = 0; bonded < 2; ++bonded) {
+    double f = 0, area = 0;
+    if (!compress_force(spec, bonded, strain, &f, &area, nodes, error)) return false;
+    e_app[bonded] = f / (area * strain);
+  }
+  return true;
+}
+
 // A rigid frictionless sphere of radius R (surface contact through its proxy) pressed into the
 // middle of the top face to `depth` in `samples` increments, quasi-static: the indentation (the
 // device's travel less the coupling's stretch, m) and the force (N) at each increment.
@@ -164,13 +176,9 @@ void register_validate(CLI::App& app, Runner* run) {
         s.mesh = make_cylinder_lattice(R, H, r[0], r[1]);
         double e_app[2] = {0, 0};
         long n = 0;
-        for (int bonded = 0; bonded < 2; ++bonded) {
-          double f = 0, area = 0;
-          if (!compress_force(s, bonded, strain, &f, &area, &n, &error)) {
-            std::fprintf(stderr, "%s: cylinder: %s\n", me, error.c_str());
-            return 1;
-          }
-          e_app[bonded] = f / (area * strain);  // over the lattice's rest cross-section
+        if (!apparent_moduli(s, strain, e_app, &n, &error)) {
+          std::fprintf(stderr, "%s: cylinder: %s\n", me, error.c_str());
+          return 1;
         }
         std::printf(
             "| frictionless cylinder 50 x 30 mm, strain %.3g: apparent modulus | %d x %d "
@@ -194,13 +202,9 @@ void register_validate(CLI::App& app, Runner* run) {
         s.mesh = make_box_lattice(Vec3(side, side, side), {c, c, c});
         double e_app[2] = {0, 0};
         long n = 0;
-        for (int bonded = 0; bonded < 2; ++bonded) {
-          double f = 0, area = 0;
-          if (!compress_force(s, bonded, strain, &f, &area, &n, &error)) {
-            std::fprintf(stderr, "%s: cube: %s\n", me, error.c_str());
-            return 1;
-          }
-          e_app[bonded] = f / (area * strain);
+        if (!apparent_moduli(s, strain, e_app, &n, &error)) {
+          std::fprintf(stderr, "%s: cube: %s\n", me, error.c_str());
+          return 1;
         }
         std::printf(
             "| bonded / frictionless cube 30 mm, strain %.3g: modulus ratio | %d x %d x %d cells "
