@@ -161,7 +161,9 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   }
   std::vector<Vec3> force(ticks);
   State s = make_state(served);
-  loop::BodyWorker worker(served, s);
+  // Waited: the body's factorisations too, so that the run is the same on any machine.
+  loop::BodyWorker worker(served, s,
+                          realtime ? loop::Factoring::kBackground : loop::Factoring::kWaited);
   Timer t_tick;  // the 1 kHz thread's tick (its contact solve), not the body's step
   std::vector<int> evaluations(ticks, 0);
   const auto start = std::chrono::steady_clock::now();

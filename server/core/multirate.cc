@@ -156,13 +156,15 @@ SurfaceScratch::SurfaceScratch(const Model& m)
 
 LocalModelBuilder::LocalModelBuilder(const Model& m)
     : factor_(std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)),
-      exact_(m.options.exact_compliance && (m.bulk_modulus > 0 || m.shear_modulus > 0) &&
-                     !m.tetrahedra.empty()
-                 ? std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)
-                 : nullptr),
       held_(m.probes.size(), std::vector<Mat3>(m.num_nodes(), Mat3::Zero())),
+      held_next_(held_),
       layer_force_(m.num_nodes(), Vec3::Zero()),
       regions_(m.probes.size()) {
+  if (m.options.exact_compliance && (m.bulk_modulus > 0 || m.shear_modulus > 0) &&
+      !m.tetrahedra.empty()) {
+    exact_ = std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal);
+    exact_next_ = std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal);
+  }
   near_.reserve(std::max(m.num_nodes(), 3 * static_cast<int>(m.surface.size())));
 }
 
@@ -171,43 +173,61 @@ LocalModelBuilder::~LocalModelBuilder() = default;
 SystemFactor* LocalModelBuilder::last(Workspace& ws) {
   return ws.factor && ws.factor->current->kind() == SystemFactor::Kind::kSupernodal
              ? ws.factor->current.get()
-             : factor_.get();
+             : current_.get();
 }
 
-bool LocalModelBuilder::refactor(const Model& m, State& s, Workspace& ws) {
+bool LocalModelBuilder::begin_refactor(const Model& m, State& s, Workspace& ws) {
+  if (pending_.load(std::memory_order_acquire) != kNone) return false;
   const double h = detail::substep_of(m);
   detail::prepare_system_at(m, s, ws, h);
   factor_->assemble(m, ws);
-  if (!factor_->factorize()) {
-    generation_ = 0;  // the factor in hand is unusable; so is every W from an earlier one
-    for (Region& r : regions_) r.generation = 0;
-    ++failures_;
-    return false;
-  }
-  generation_ = ++factorizations_;
   // W's own factor: the tetrahedra's element terms with their exact Hessians, so that W is the
   // response a converged body step gives ((1) in haptic_contact); the Gauss-Newton factor above
   // stays the body's preconditioner (the exact one, handed over, took the liver's CG from 4.3 to
   // 11.6 iterations per Newton iteration). Where the exact tangent is not positive definite, W
   // comes from the Gauss-Newton factor.
-  exact_ok_ = exact_ && (exact_->assemble(m, ws, &s.x), exact_->factorize());
+  if (exact_next_) exact_next_->assemble(m, ws, &s.x);
   for (size_t k = 0; k < m.probes.size(); ++k) {  // what the contact stage put in the system
     const ProbeState& p = s.probes[k];
+    std::vector<Mat3>& held = held_next_[k];
     if (m.probes[k].contact == ContactModel::kSurface) {  // the layer's lumped blocks
-      std::fill(held_[k].begin(), held_[k].end(), Mat3::Zero());
+      std::fill(held.begin(), held.end(), Mat3::Zero());
       layer_forces(m, static_cast<int>(k), p, s.x, ws.contact.candidates[k].triangles, nullptr,
-                   held_[k].data());
+                   held.data());
       continue;
     }
     const double R = probe_radius(m, static_cast<int>(k), p), kc = m.probes[k].stiffness;
     for (int i = 0; i < m.num_nodes(); ++i) {
       Vec3 f, dir;
       Mat3 dfdc;
-      held_[k][i] = p.active && node_contact(s.x[i], m.normal[i], p.center, R, kc, &f, &dfdc, &dir)
-                        ? Mat3(kc * dir * dir.transpose())
-                        : Mat3::Zero();
+      held[i] = p.active && node_contact(s.x[i], m.normal[i], p.center, R, kc, &f, &dfdc, &dir)
+                    ? Mat3(kc * dir * dir.transpose())
+                    : Mat3::Zero();
     }
   }
+  pending_.store(kAssembled, std::memory_order_release);
+  return true;
+}
+
+void LocalModelBuilder::factor_pending() {
+  if (pending_.load(std::memory_order_acquire) != kAssembled) return;
+  const bool ok = factor_->factorize();
+  exact_next_ok_ = ok && exact_next_ && exact_next_->factorize();
+  pending_.store(ok ? kFactored : kFailed, std::memory_order_release);
+}
+
+int LocalModelBuilder::finish_refactor(const Model& m, Workspace& ws) {
+  const int state = pending_.load(std::memory_order_acquire);
+  if (state == kNone || state == kAssembled) return 0;
+  pending_.store(kNone, std::memory_order_release);
+  if (state == kFailed) {  // the factor in hand (if any) stays: it still describes its system
+    ++failures_;
+    return -1;
+  }
+  generation_ = ++factorizations_;
+  std::swap(held_, held_next_);
+  std::swap(exact_, exact_next_);
+  exact_ok_ = exact_next_ok_;
   // The fresh factor is the best preconditioner the body's next step can have (kFactorCG): hand
   // it over and keep the one it had as the next scratch.
   if (ws.factor) {
@@ -216,8 +236,17 @@ bool LocalModelBuilder::refactor(const Model& m, State& s, Workspace& ws) {
     ws.factor->age = 0;
     if (factor_->kind() != SystemFactor::Kind::kSupernodal)  // the first hand-over only
       factor_ = std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal);
+  } else {
+    std::swap(current_, factor_);
+    if (!factor_) factor_ = std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal);
   }
-  return true;
+  return 1;
+}
+
+bool LocalModelBuilder::refactor(const Model& m, State& s, Workspace& ws) {
+  if (!begin_refactor(m, s, ws)) return false;
+  factor_pending();
+  return finish_refactor(m, ws) > 0;
 }
 
 bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int k, double margin,
@@ -259,18 +288,10 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
   const bool same = reg.generation == generation_ && reg.num == num &&
                     std::equal(lm->nodes.begin(), lm->nodes.begin() + num, reg.nodes.begin());
   if (!same) {
-    r_.assign(static_cast<size_t>(n) * std::max(n3, 1), 0.0);  // grows to the largest region once
-    z_.resize(r_.size());
-    for (int col = 0; col < n3; ++col)
-      r_[static_cast<size_t>(col) * n + (col % 3) * nn + lm->nodes[col / 3]] = 1.0;
-    if (n3 > 0) (exact_ok_ ? exact_.get() : last(ws))->solve_many(r_.data(), z_.data(), n3);
-    const double h2 = lm->h * lm->h;
     reg.w.resize(static_cast<size_t>(n3) * n3);
-    for (int col = 0; col < n3; ++col)
-      for (int b = 0; b < num; ++b)
-        for (int cb = 0; cb < 3; ++cb)
-          reg.w[(3 * b + cb) * n3 + col] =
-              h2 * z_[static_cast<size_t>(col) * n + cb * nn + lm->nodes[b]];
+    (exact_ok_ ? exact_.get() : last(ws))->inverse_block(lm->nodes.data(), num, reg.w.data(), n3);
+    const double h2 = lm->h * lm->h;
+    for (double& v : reg.w) v *= h2;
     // W^-1 on the free axes (a fixed axis has a zero row and column in W), for the joint
     // solve's energy (haptic_contact).
     std::vector<int> free_axes;
@@ -358,7 +379,8 @@ bool refactor_due(const SolverOptions& o, bool factored, int steps_since, double
 }
 
 bool step_body(const Model& body, const SolverOptions& served, State& s, Workspace& ws,
-               LocalModelBuilder& builder, int* since_factor) {
+               LocalModelBuilder& builder, int* since_factor, bool defer) {
+  if (defer && builder.finish_refactor(body, ws) != 0) *since_factor = 0;
   const Counters c0 = s.counters;
   step(body, s, ws);
   // With kFactorCG the factor in hand preconditions CG, and CG's count says how well it still
@@ -368,8 +390,10 @@ bool step_body(const Model& body, const SolverOptions& served, State& s, Workspa
                                         1, s.counters.newton_iterations - c0.newton_iterations)
                               : -1.0;
   if (!refactor_due(served, builder.factored(), ++*since_factor, cg,
-                    s.counters.rollbacks != c0.rollbacks))
+                    s.counters.rollbacks != c0.rollbacks) ||
+      builder.pending())
     return false;
+  if (defer && builder.factored()) return builder.begin_refactor(body, s, ws);
   *since_factor = 0;
   return builder.refactor(body, s, ws);
 }

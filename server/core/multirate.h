@@ -41,6 +41,7 @@
 // stays bounded. The body step holds the proxy where the ticks left it (body_model).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -112,10 +113,23 @@ class LocalModelBuilder {
   ~LocalModelBuilder();
   // After a body step at h = m's substep: the implicit system at state s (forces with the
   // Jacobian, coefficients, element terms), factored; the probes' contact Jacobians it holds are
-  // kept for build(). False when the system is not positive definite (no factor until the next
-  // success). With kFactorCG the fresh factor becomes ws's current one (the next step's
-  // preconditioner).
+  // kept for build(). False when the system is not positive definite (the factor in hand, if
+  // any, stays). With kFactorCG the fresh factor becomes ws's current one (the next step's
+  // preconditioner). begin_refactor, factor_pending and finish_refactor one after the other.
   bool refactor(const Model& m, State& s, Workspace& ws);
+  // The same in three parts, so that the numeric factorisations (tens of milliseconds on the
+  // larger bodies, allocating inside CHOLMOD) can run on another thread while the body steps on
+  // with the factor in hand (loop/body_worker.h):
+  //   begin_refactor (the body's thread): the system at s assembled into the spare factors and
+  //     the contact Jacobians it holds recorded; false while a factorisation is pending.
+  //   factor_pending (any one thread): the numeric factorisations of what begin_refactor left.
+  //   finish_refactor (the body's thread): a finished factorisation handed over (1: the next
+  //     build()s use it, and the next step preconditions with it), a failed one counted (-1),
+  //     or none finished (0).
+  bool begin_refactor(const Model& m, State& s, Workspace& ws);
+  void factor_pending();
+  int finish_refactor(const Model& m, Workspace& ws);
+  bool pending() const { return pending_.load(std::memory_order_acquire) != kNone; }
   // Probe k's local model at state s from the last factor: the region (the nodes within the
   // probe radius plus `margin`, the closest if more than the capacity; surface contact: the nodes
   // of the surface triangles that near the proxy), their positions and probe forces at s, and W =
@@ -137,15 +151,21 @@ class LocalModelBuilder {
     std::vector<double> winv;  // its inverse on the free axes (zero on fixed ones), the same
   };
   SystemFactor* last(Workspace& ws);
-  std::unique_ptr<SystemFactor> factor_;
-  std::unique_ptr<SystemFactor> exact_;  // W's factor (tetrahedra's terms: exact Hessians)
-  bool exact_ok_ = false;                // exact_ holds the last refactor's system
+  enum : int { kNone, kAssembled, kFactored, kFailed };
+  std::atomic<int> pending_{kNone};
+  std::unique_ptr<SystemFactor> factor_;   // the spare (begin_refactor assembles into it)
+  std::unique_ptr<SystemFactor> current_;  // the last factor, when ws has no kFactorCG scratch
+  std::unique_ptr<SystemFactor> exact_;    // W's factor (tetrahedra's terms: exact Hessians)
+  std::unique_ptr<SystemFactor> exact_next_;
+  bool exact_ok_ = false;       // exact_ holds the last refactor's system
+  bool exact_next_ok_ = false;  // exact_next_ holds the pending one's
   std::vector<double> r_, z_;
   std::vector<std::pair<double, int>> near_;
-  std::vector<std::vector<Mat3>> held_;  // (probes x nodes) N/m: B0 of the factored system
-  std::vector<Vec3> layer_force_;        // (nodes) N, surface contact's f0
-  std::vector<Region> regions_;          // (probes)
-  std::uint64_t generation_ = 0;         // W's key: 0 without a usable factor
+  std::vector<std::vector<Mat3>> held_;       // (probes x nodes) N/m: B0 of the factored system
+  std::vector<std::vector<Mat3>> held_next_;  // the pending factorisation's
+  std::vector<Vec3> layer_force_;             // (nodes) N, surface contact's f0
+  std::vector<Region> regions_;               // (probes)
+  std::uint64_t generation_ = 0;              // W's key: 0 without a usable factor
   std::uint64_t factorizations_ = 0, failures_ = 0, solves_ = 0;
 };
 
@@ -161,8 +181,12 @@ bool refactor_due(const SolverOptions& served, bool factored, int steps_since, d
 // One step of the multi-rate body as its thread takes it: step() on `body` (body_model of the
 // served model), then a new factor when refactor_due says so (`served`: the served options;
 // *since_factor counts the body steps since the last). True when it factored successfully.
+// defer: the factorisation is begun (LocalModelBuilder::begin_refactor) for another thread to
+// run (factor_pending), and the next step_body hands it over first if it has finished, so that
+// the body steps on with the factor in hand meanwhile; the first factor is made inline. True
+// then when a factorisation was begun.
 bool step_body(const Model& body, const SolverOptions& served, State& s, Workspace& ws,
-               LocalModelBuilder& builder, int* since_factor);
+               LocalModelBuilder& builder, int* since_factor, bool defer = false);
 
 // A node's own share of the tissue, k_t = E* times the median spring length (N/m; a tenth of the
 // multi-rate node penalty): what an estimate puts behind each node. Allocates (at load).

@@ -62,6 +62,13 @@ class SystemFactor {
   // The same for k right-hand sides at once (r and z: k such vectors one after the other), in
   // one pass of the supernodal solve (allocates at a new k).
   void solve_many(const double* r, double* z, int k);
+  // The block of A_f^-1 over the given nodes' 3 num axes (node a's axis c at row and column
+  // 3 a + c), into w (column-major, leading dimension ld >= 3 num): zero rows and columns on
+  // fixed axes. With a supernodal factor P A_f P^T = L L^T it is Y^T Y, Y = L^-1 P E (E the
+  // axes' unit columns): one forward solve, which visits only the supernodes on the elimination
+  // tree's paths from the nodes' columns to the root (the others see zero right-hand sides);
+  // a simplicial factor solves the columns in full. Allocates its scratch at a larger num.
+  void inverse_block(const int* nodes, int num, double* w, int ld);
   // y = A_f p with the assembled values (component-major), for tests.
   void multiply(const double* p, double* y) const;
 
@@ -84,6 +91,9 @@ class SystemFactor {
                                      // axis's unit diagonal, -2: zero (a fixed axis's coupling)
   std::vector<double> free_;         // (3 num_nodes) component-major free-axis mask
   std::vector<double> work_;         // (3 num_nodes) the solve's permuted vector
+  std::vector<int> iperm_;           // (3 num_nodes) the factor's row of each unknown
+  std::vector<double> y_, t_;        // inverse_block's scratch: Y (row-major) and an update
+  std::vector<char> live_;           // (3 num_nodes) rows of Y that can be nonzero
   std::unique_ptr<Cholmod> c_;
   bool factored_ = false;
 };

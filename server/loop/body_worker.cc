@@ -8,7 +8,7 @@
 #include <cmath>
 
 namespace conica::loop {
-BodyWorker::BodyWorker(const Model& served, const State& rest)
+BodyWorker::BodyWorker(const Model& served, const State& rest, Factoring factoring)
     : body_(body_model(served)),
       body_state_(rest),
       ws_(body_),
@@ -30,6 +30,8 @@ BodyWorker::BodyWorker(const Model& served, const State& rest)
   for (const ProbeSpec& p : served.probes)
     share_.push_back(p.contact == ContactModel::kSurface ? share : 0.1 * p.stiffness);
   prime_workspace(ws_);
+  factoring_ = factoring;
+  if (factoring_ != Factoring::kInline) factor_thread_ = std::thread([this] { run_factor(); });
   thread_ = std::thread([this] { run(); });
 }
 
@@ -37,6 +39,29 @@ BodyWorker::~BodyWorker() {
   state_.store(kStop, std::memory_order_release);
   state_.notify_all();
   thread_.join();
+  if (factor_thread_.joinable()) {
+    factor_job_.store(2, std::memory_order_release);
+    factor_job_.notify_all();
+    factor_thread_.join();
+  }
+}
+
+void BodyWorker::run_factor() {
+  sched_param p{};
+  p.sched_priority = 0;
+  pthread_setschedparam(pthread_self(), SCHED_OTHER, &p);  // not the loop's real-time policy
+  for (;;) {
+    const int v = factor_job_.load(std::memory_order_acquire);
+    if (v == 2) return;
+    if (v == 0) {
+      factor_job_.wait(0, std::memory_order_acquire);
+      continue;
+    }
+    builder_.factor_pending();
+    int expected = 1;
+    if (!factor_job_.compare_exchange_strong(expected, 0, std::memory_order_acq_rel)) return;
+    factor_job_.notify_all();
+  }
 }
 
 void BodyWorker::run() {
@@ -59,7 +84,15 @@ void BodyWorker::run() {
       body_state_.probes[k].radius = input_[k].radius;
       set_probe(body_state_, static_cast<int>(k), input_[k].center, input_[k].active);
     }
-    step_body(body_, served_options_, body_state_, ws_, builder_, &since_factor_);
+    if (factoring_ == Factoring::kWaited)
+      for (int v; (v = factor_job_.load(std::memory_order_acquire)) == 1;)
+        factor_job_.wait(v, std::memory_order_acquire);
+    step_body(body_, served_options_, body_state_, ws_, builder_, &since_factor_,
+              factoring_ != Factoring::kInline);
+    if (factoring_ != Factoring::kInline && builder_.pending()) {
+      factor_job_.store(1, std::memory_order_release);
+      factor_job_.notify_one();
+    }
     Snapshot& out = snap_[back_];
     for (size_t k = 0; k < input_.size(); ++k) {
       LocalModel& lm = out.local[k];

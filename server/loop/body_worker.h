@@ -7,8 +7,9 @@
 // active probe's local model and hands back the model and the node positions through a second
 // buffer. The body's system is factored anew after a step when the served model's
 // refactor_every body steps have passed, when CG took more than its refactor_iterations per
-// Newton iteration with the factor in hand, or after a rollback; in between the local models
-// come from the factor in hand (which also preconditions the steps). The tick swaps in a finished
+// Newton iteration with the factor in hand, or after a rollback, on a thread of its own by
+// default (Factoring); until it is handed over the local models come from the factor in hand
+// (which also preconditions the steps). The tick swaps in a finished
 // step at its start and never waits: a body thread that falls behind leaves the tick on the last
 // local model (late_ticks counts the ticks a step was due but the thread was still busy). A probe
 // farther from where the body step saw it than the local model's reach, or one with no local model
@@ -31,11 +32,17 @@
 
 namespace conica::loop {
 
+// Where the body's numeric factorisations run (LocalModelBuilder::refactor): on the body thread
+// after the step that asked for one; on a thread of their own while the body steps on with the
+// factor in hand (handed over at the first body step after it finished); or on that thread with
+// the next body step waiting for it (the same sequence on any machine, for tests and benchmarks).
+enum class Factoring { kInline, kBackground, kWaited };
+
 class BodyWorker {
  public:
   // `served`: the scene's model (dt one tick) at rest in `rest`; the body steps every
-  // round(rate / options.body_rate_hz) ticks. Allocates; starts the thread (normal priority).
-  BodyWorker(const Model& served, const State& rest);
+  // round(rate / options.body_rate_hz) ticks. Allocates; starts the threads (normal priority).
+  BodyWorker(const Model& served, const State& rest, Factoring factoring = Factoring::kBackground);
   ~BodyWorker();
   BodyWorker(const BodyWorker&) = delete;
   BodyWorker& operator=(const BodyWorker&) = delete;
@@ -70,6 +77,7 @@ class BodyWorker {
     std::vector<Vec3> x;            // (nodes) m
   };
   void run();
+  void run_factor();
   void answer(const Model& served, const std::vector<Vec3>& x, int k, const Vec3& center,
               double radius, ProbeState* probe, std::vector<Vec3>* x_out);
 
@@ -102,6 +110,9 @@ class BodyWorker {
   int since_ = 0;
   std::uint64_t body_steps_ = 0, late_ticks_ = 0, frozen_ = 0;
   int evaluations_ = 0;
+  Factoring factoring_ = Factoring::kBackground;
+  std::atomic<int> factor_job_{0};  // 1: the builder has a factorisation pending; 2: stop
+  std::thread factor_thread_;
   std::thread thread_;
 };
 

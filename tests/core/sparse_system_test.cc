@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -106,6 +107,26 @@ double MaxAbs(const std::vector<double>& v) {
   return a;
 }
 
+// The dense matrix of the matrix-free product, column by column, on the free axes (*free: their
+// component-major indices).
+Eigen::MatrixXd DenseSystem(const Model& m, State& s, Workspace& ws, std::vector<int>* free) {
+  const int nn = m.num_nodes(), n3 = 3 * nn;
+  free->clear();
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < nn; ++i)
+      if (m.free_axes[i][c]) free->push_back(c * nn + i);
+  const int nf = static_cast<int>(free->size());
+  Eigen::MatrixXd A(nf, nf);
+  std::vector<double> e(n3, 0.0), y(n3);
+  for (int q = 0; q < nf; ++q) {
+    e[(*free)[q]] = 1;
+    detail::system_product(m, s, ws, m.options.dt, e.data(), y.data());
+    e[(*free)[q]] = 0;
+    for (int r = 0; r < nf; ++r) A(r, q) = y[(*free)[r]];
+  }
+  return A;
+}
+
 class SparseSystemTest : public ::testing::TestWithParam<bool> {};
 
 TEST_P(SparseSystemTest, AssembledMatrixTimesAVectorIsTheMatrixFreeProduct) {
@@ -135,20 +156,10 @@ TEST_P(SparseSystemTest, FactorSolveInvertsTheMatrixFreeSystemLikeADenseSolve) {
   State s = Pressed(m);
   Workspace ws(m);
   const int nn = m.num_nodes(), n3 = 3 * nn;
-  // The dense matrix from the matrix-free product, column by column, on the free axes.
   std::vector<int> free;
-  for (int c = 0; c < 3; ++c)
-    for (int i = 0; i < nn; ++i)
-      if (m.free_axes[i][c]) free.push_back(c * nn + i);
+  const Eigen::MatrixXd A = DenseSystem(m, s, ws, &free);
   const int nf = static_cast<int>(free.size());
-  Eigen::MatrixXd A(nf, nf);
-  std::vector<double> e(n3, 0.0), y(n3);
-  for (int q = 0; q < nf; ++q) {
-    e[free[q]] = 1;
-    detail::system_product(m, s, ws, m.options.dt, e.data(), y.data());
-    e[free[q]] = 0;
-    for (int r = 0; r < nf; ++r) A(r, q) = y[free[r]];
-  }
+  std::vector<double> y(n3);
   ws.factor->current->assemble(m, ws);
   ASSERT_TRUE(ws.factor->current->factorize());
   const std::vector<double> r = Random(m, 9);
@@ -170,6 +181,54 @@ TEST_P(SparseSystemTest, FactorSolveInvertsTheMatrixFreeSystemLikeADenseSolve) {
       if (!m.free_axes[i][c]) {
         EXPECT_EQ(z[c * nn + i], 0.0);
       }
+}
+
+// The block of A^-1 over a few nodes (a corner node with fixed axes among them), as the
+// multi-rate body's local compliance takes it, against the dense inverse: the supernodal
+// factor's pruned forward solve and the simplicial factor's full solves.
+TEST_P(SparseSystemTest, InverseBlockIsTheDenseInverseOverTheNodes) {
+  const Model m = Block(GetParam());
+  State s = Pressed(m);
+  Workspace ws(m);
+  const int nn = m.num_nodes();
+  std::vector<int> free;
+  const Eigen::MatrixXd A = DenseSystem(m, s, ws, &free);
+  const Eigen::MatrixXd Ainv = A.ldlt().solve(Eigen::MatrixXd::Identity(A.rows(), A.cols()));
+  std::vector<int> index(3 * nn, -1);  // component-major axis -> row of A
+  for (size_t q = 0; q < free.size(); ++q) index[free[q]] = static_cast<int>(q);
+  // The nodes nearest the top centre, and the fixed corner at the origin.
+  std::vector<std::pair<double, int>> near;
+  for (int i = 0; i < nn; ++i) near.emplace_back((s.x[i] - Vec3(0.01, 0.01, 0.015)).norm(), i);
+  std::sort(near.begin(), near.end());
+  std::vector<int> nodes;
+  for (int a = 0; a < 12; ++a) nodes.push_back(near[a].second);
+  int corner = 0;
+  for (int i = 0; i < nn; ++i)
+    if (s.x[i].norm() < s.x[corner].norm()) corner = i;
+  nodes.push_back(corner);
+  const int k = 3 * static_cast<int>(nodes.size()), ld = k + 2;
+  for (SystemFactor::Kind kind :
+       {SystemFactor::Kind::kSupernodal, SystemFactor::Kind::kSimplicial}) {
+    SystemFactor f(m, kind);
+    detail::prepare_system_at(m, s, ws, m.options.dt);
+    f.assemble(m, ws);
+    ASSERT_TRUE(f.factorize());
+    std::vector<double> w(static_cast<size_t>(ld) * k, -1.0);
+    f.inverse_block(nodes.data(), static_cast<int>(nodes.size()), w.data(), ld);
+    double err = 0, scale = 0;
+    int fixed = 0;
+    for (int c = 0; c < k; ++c)
+      for (int r = 0; r < k; ++r) {
+        const int ir = index[(r % 3) * nn + nodes[r / 3]], ic = index[(c % 3) * nn + nodes[c / 3]];
+        const double ref = ir >= 0 && ic >= 0 ? Ainv(ir, ic) : 0.0;
+        fixed += ir < 0 && r == c;
+        err = std::max(err, std::abs(w[static_cast<size_t>(c) * ld + r] - ref));
+        scale = std::max(scale, std::abs(ref));
+      }
+    EXPECT_GT(fixed, 0);  // the corner's fixed axes are in the block
+    EXPECT_LT(err, 1e-9 * scale) << (kind == SystemFactor::Kind::kSupernodal ? "supernodal"
+                                                                             : "simplicial");
+  }
 }
 
 // One Newton step, solved by CG with a fresh factor and by block-Jacobi CG run to convergence.

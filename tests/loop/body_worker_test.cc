@@ -103,7 +103,7 @@ struct Served {
 Served Serve(const Model& m) {
   const std::vector<Vec3>& ref_force = ReferenceForce(m.probes[0].contact);
   State s = make_state(m);
-  BodyWorker worker(m, s);
+  BodyWorker worker(m, s, Factoring::kWaited);
   EXPECT_EQ(worker.every(), 20);
   Served r;
   double err2 = 0, ref2 = 0;
