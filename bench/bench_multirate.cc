@@ -20,6 +20,8 @@
 // joint_proxy_step); --ref-sweeps N instead steps N times per tick with the probe where it is
 // (the proxy moved against the nodes, then the body with the proxy held, N times: N = 1 is the
 // single-rate step; a larger N approaches the quasi-static response, time running N times over);
+// BENCH_REFERENCE=FILE: the per-tick reference's forces kept in FILE and read back by a later run
+// of the same body and path (served settings compared without solving the reference again).
 // --lift: after the press and its hold the probe goes straight back out at the press's speed
 // (instead of the slide), and the force at the same depths pressing and lifting is printed.
 // --churn: the soak's churning client (tools/soak_main.cc) without the wire, paced at 1 kHz:
@@ -138,7 +140,25 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   double worst_gap = 0;  // m, the joint reference's largest |R_p| / k_c
   std::vector<Vec3> ref_force(ticks);
   Timer t_ref;
-  {
+  // BENCH_REFERENCE=FILE keeps the reference's forces in FILE (read when it holds this run's:
+  // the same body at rest, probe, contact model, path and reference kind; written otherwise), so
+  // that served settings (body rate, Newton cap, factor policy) are compared against one
+  // reference without solving it again.
+  const char* cache = std::getenv("BENCH_REFERENCE");
+  double key = ticks + 1e3 * r + 7 * depth + 11 * speed + 13 * lift + 17 * sweeps + 19 * up +
+               23 * static_cast<int>(ref.probes[0].contact) + 29 * ref.options.mass_damping;
+  for (size_t i = 0; i < served.rest.size(); ++i) key += (i % 97 + 1) * served.rest[i].sum();
+  bool cached = false;
+  if (cache) {
+    if (FILE* f = std::fopen(cache, "rb")) {
+      double k = 0;
+      cached = std::fread(&k, sizeof k, 1, f) == 1 && k == key &&
+               std::fread(ref_force.data(), sizeof(Vec3), ticks, f) == static_cast<size_t>(ticks);
+      std::fclose(f);
+    }
+    if (cached) std::printf("reference read from %s\n", cache);
+  }
+  if (!cached) {
     State s = make_state(ref);
     Workspace ws(ref), ws_held(held);
     for (int t = 0; t < ticks; ++t) {
@@ -158,12 +178,23 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
       if (ref.probes[0].contact == ContactModel::kNodes) probe_contact(ref, s.x, 0, path(t), r, &p);
       ref_force[t] = p.force;
     }
+    if (cache)
+      if (FILE* f = std::fopen(cache, "wb")) {
+        std::fwrite(&key, sizeof key, 1, f);
+        std::fwrite(ref_force.data(), sizeof(Vec3), ticks, f);
+        std::fclose(f);
+      }
   }
   std::vector<Vec3> force(ticks);
   State s = make_state(served);
-  // Waited: the body's factorisations too, so that the run is the same on any machine.
+  // Waited: the body's factorisations too, so that the run is the same on any machine
+  // (BENCH_FACTORING=inline: on the body thread after the step that asked, as before they had a
+  // thread of their own).
+  const char* factoring = std::getenv("BENCH_FACTORING");
   loop::BodyWorker worker(served, s,
-                          realtime ? loop::Factoring::kBackground : loop::Factoring::kWaited);
+                          factoring && std::string(factoring) == "inline" ? loop::Factoring::kInline
+                          : realtime ? loop::Factoring::kBackground
+                                     : loop::Factoring::kWaited);
   Timer t_tick;  // the 1 kHz thread's tick (its contact solve), not the body's step
   std::vector<int> evaluations(ticks, 0);
   const auto start = std::chrono::steady_clock::now();

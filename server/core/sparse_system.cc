@@ -22,18 +22,13 @@ struct SystemFactor::Cholmod {
   cholmod_sparse* A = nullptr;
   cholmod_factor* L = nullptr;
   cholmod_dense* B = nullptr;
-  cholmod_dense* X = nullptr;
-  cholmod_dense* Y = nullptr;
-  cholmod_dense* E = nullptr;
-  cholmod_dense *Bk = nullptr, *Xk = nullptr, *Yk = nullptr, *Ek = nullptr;  // solve_many
   Cholmod() {
     cholmod_start(&c);
     c.print = 0;  // the core prints nothing; failures are reported through the return value
     c.error_handler = nullptr;
   }
   ~Cholmod() {
-    for (cholmod_dense** d : {&B, &X, &Y, &E, &Bk, &Xk, &Yk, &Ek})
-      if (*d) cholmod_free_dense(d, &c);
+    if (B) cholmod_free_dense(&B, &c);
     if (L) cholmod_free_factor(&L, &c);
     if (A) cholmod_free_sparse(&A, &c);
     cholmod_finish(&c);
@@ -117,6 +112,13 @@ SystemFactor::SystemFactor(const Model& m, Kind kind)
   if (c_->L) {
     const auto* perm = static_cast<const int*>(c_->L->Perm);
     for (int k = 0; k < n; ++k) iperm_[perm[k]] = k;
+    if (c_->L->is_super) {
+      const auto* pi = static_cast<const int*>(c_->L->pi);
+      for (size_t s = 0; s < c_->L->nsuper; ++s)
+        max_nsrow_ = std::max(max_nsrow_, pi[s + 1] - pi[s]);
+      x_.resize(n);
+      t_.resize(max_nsrow_);
+    }
   }
   c_->B = cholmod_zeros(n, 1, CHOLMOD_REAL, &cc);
   work_.assign(n, 0.0);
@@ -221,35 +223,11 @@ bool SystemFactor::factorize() {
   return factored_;
 }
 
-namespace {
-// x = A^-1 b by CHOLMOD's supernodal solve, k component-major right-hand sides; *B, *X, *Y, *E
-// are kept between calls (reallocated when k changes).
-void supernodal_solve(cholmod_factor* L, cholmod_common* cc, cholmod_dense** B, cholmod_dense** X,
-                      cholmod_dense** Y, cholmod_dense** E, const double* free, int nn,
-                      const double* r, double* z, int k) {
-  const int n = 3 * nn;
-  if (!*B || static_cast<int>((*B)->ncol) != k) {
-    if (*B) cholmod_free_dense(B, cc);
-    *B = cholmod_zeros(n, k, CHOLMOD_REAL, cc);
-  }
-  auto* b = static_cast<double*>((*B)->x);
-  for (int q = 0; q < k; ++q)
-    for (int i = 0; i < nn; ++i)
-      for (int c = 0; c < 3; ++c) b[q * n + 3 * i + c] = r[q * n + c * nn + i] * free[c * nn + i];
-  cholmod_solve2(CHOLMOD_A, L, *B, nullptr, X, nullptr, Y, E, cc);
-  const auto* x = static_cast<const double*>((*X)->x);
-  const int ld = static_cast<int>((*X)->d);
-  for (int q = 0; q < k; ++q)
-    for (int i = 0; i < nn; ++i)
-      for (int c = 0; c < 3; ++c) z[q * n + c * nn + i] = x[q * ld + 3 * i + c] * free[c * nn + i];
-}
-}  // namespace
-
 // z = P^T L^-T D^-1 L^-1 P r with the simplicial LDL^T factor read in place (CHOLMOD's layout:
 // column j's first entry is D(j), the unit diagonal of L is not stored): no allocation.
 void SystemFactor::solve(const double* r, double* z) {
   if (c_->L->is_super) {
-    supernodal_solve(c_->L, &c_->c, &c_->B, &c_->X, &c_->Y, &c_->E, free_.data(), nn_, r, z, 1);
+    supernodal_solve(r, z, 1);
     return;
   }
   const int nn = nn_, n = 3 * nn;
@@ -286,7 +264,101 @@ void SystemFactor::solve_many(const double* r, double* z, int k) {
     for (int q = 0; q < k; ++q) solve(r + q * n, z + q * n);
     return;
   }
-  supernodal_solve(c_->L, &c_->c, &c_->Bk, &c_->Xk, &c_->Yk, &c_->Ek, free_.data(), nn_, r, z, k);
+  supernodal_solve(r, z, k);
+}
+
+// P^T L^-T L^-1 P with the supernodal factor read in place, supernode by supernode (Eigen's
+// dense kernels on each one's columns, nsrow x nscol column-major at px[s], rows Ls[pi[s]..]):
+// no BLAS call, so that the body thread's solves never run BLAS beside the factor thread's
+// factorisation (Debian's serial OpenBLAS is not safe to call from two threads at once), and no
+// allocation once the scratch has the size of k right-hand sides.
+void SystemFactor::supernodal_solve(const double* r, double* z, int k) {
+  const int nn = nn_, n = 3 * nn;
+  const cholmod_factor* L = c_->L;
+  const auto* super = static_cast<const int*>(L->super);
+  const auto* pi = static_cast<const int*>(L->pi);
+  const auto* px = static_cast<const int*>(L->px);
+  const auto* ls = static_cast<const int*>(L->s);
+  const auto* lx = static_cast<const double*>(L->x);
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  if (x_.size() < static_cast<size_t>(n) * k) x_.resize(static_cast<size_t>(n) * k);
+  if (t_.size() < static_cast<size_t>(max_nsrow_) * k)
+    t_.resize(static_cast<size_t>(max_nsrow_) * k);
+  // X row-major (k entries per row of the permuted system).
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) {
+      double* xr = x_.data() + static_cast<size_t>(iperm_[3 * i + c]) * k;
+      const double f = free_[c * nn + i];
+      for (int q = 0; q < k; ++q) xr[q] = r[static_cast<size_t>(q) * n + c * nn + i] * f;
+    }
+  const size_t nsuper = L->nsuper;
+  if (k == 1) {                            // one right-hand side: vector kernels
+    for (size_t s = 0; s < nsuper; ++s) {  // L y = P b
+      const int k1 = super[s], nscol = super[s + 1] - k1, below = pi[s + 1] - pi[s] - nscol;
+      const int ld = nscol + below;
+      Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Ls(lx + px[s], ld, nscol,
+                                                                    Eigen::OuterStride<>(ld));
+      Eigen::Map<Eigen::VectorXd> x1(x_.data() + k1, nscol);
+      Ls.topRows(nscol).triangularView<Eigen::Lower>().solveInPlace(x1);
+      if (below == 0) continue;
+      Eigen::Map<Eigen::VectorXd> t(t_.data(), below);
+      t.noalias() = Ls.bottomRows(below) * x1;
+      const int* rows = ls + pi[s] + nscol;
+      for (int q = 0; q < below; ++q) x_[rows[q]] -= t_[q];
+    }
+    for (size_t s = nsuper; s-- > 0;) {  // L^T x = y
+      const int k1 = super[s], nscol = super[s + 1] - k1, below = pi[s + 1] - pi[s] - nscol;
+      const int ld = nscol + below;
+      Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Ls(lx + px[s], ld, nscol,
+                                                                    Eigen::OuterStride<>(ld));
+      Eigen::Map<Eigen::VectorXd> x1(x_.data() + k1, nscol);
+      if (below > 0) {
+        const int* rows = ls + pi[s] + nscol;
+        for (int q = 0; q < below; ++q) t_[q] = x_[rows[q]];
+        x1.noalias() -=
+            Ls.bottomRows(below).transpose() * Eigen::Map<const Eigen::VectorXd>(t_.data(), below);
+      }
+      Ls.topRows(nscol).transpose().triangularView<Eigen::Upper>().solveInPlace(x1);
+    }
+  } else {
+    for (size_t s = 0; s < nsuper; ++s) {  // L Y = P b
+      const int k1 = super[s], nscol = super[s + 1] - k1, below = pi[s + 1] - pi[s] - nscol;
+      Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Ls(
+          lx + px[s], nscol + below, nscol, Eigen::OuterStride<>(nscol + below));
+      Eigen::Map<RowMajor> X1(x_.data() + static_cast<size_t>(k1) * k, nscol, k);
+      Ls.topRows(nscol).triangularView<Eigen::Lower>().solveInPlace(X1);
+      if (below == 0) continue;
+      Eigen::Map<RowMajor> T(t_.data(), below, k);
+      T.noalias() = Ls.bottomRows(below) * X1;
+      const int* rows = ls + pi[s] + nscol;
+      for (int q = 0; q < below; ++q) {
+        double* xr = x_.data() + static_cast<size_t>(rows[q]) * k;
+        const double* tr = t_.data() + static_cast<size_t>(q) * k;
+        for (int c = 0; c < k; ++c) xr[c] -= tr[c];
+      }
+    }
+    for (size_t s = nsuper; s-- > 0;) {  // L^T X = Y
+      const int k1 = super[s], nscol = super[s + 1] - k1, below = pi[s + 1] - pi[s] - nscol;
+      Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Ls(
+          lx + px[s], nscol + below, nscol, Eigen::OuterStride<>(nscol + below));
+      Eigen::Map<RowMajor> X1(x_.data() + static_cast<size_t>(k1) * k, nscol, k);
+      if (below > 0) {
+        const int* rows = ls + pi[s] + nscol;
+        for (int q = 0; q < below; ++q)
+          std::copy_n(x_.data() + static_cast<size_t>(rows[q]) * k, k,
+                      t_.data() + static_cast<size_t>(q) * k);
+        Eigen::Map<const RowMajor> T(t_.data(), below, k);
+        X1.noalias() -= Ls.bottomRows(below).transpose() * T;
+      }
+      Ls.topRows(nscol).transpose().triangularView<Eigen::Upper>().solveInPlace(X1);
+    }
+  }
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double* xr = x_.data() + static_cast<size_t>(iperm_[3 * i + c]) * k;
+      const double f = free_[c * nn + i];
+      for (int q = 0; q < k; ++q) z[static_cast<size_t>(q) * n + c * nn + i] = xr[q] * f;
+    }
 }
 
 void SystemFactor::inverse_block(const int* nodes, int num, double* w, int ld) {

@@ -37,7 +37,8 @@ class SystemFactor {
  public:
   // Simplicial LDL^T: solve() reads the factor in place and allocates nothing (the 1 kHz step).
   // Supernodal LL^T (BLAS): a much faster numeric factorisation on the larger bodies; its solves
-  // go through cholmod_solve2, which may allocate (off the 1 kHz thread: the multi-rate body's).
+  // read it in place with Eigen's dense kernels (no BLAS call: the body thread solves while
+  // another thread factors), allocating only at a larger number of right-hand sides.
   enum class Kind { kSimplicial, kSupernodal };
   // The pattern and the symbolic analysis (allocates).
   explicit SystemFactor(const Model& m, Kind kind = Kind::kSimplicial);
@@ -93,7 +94,10 @@ class SystemFactor {
   std::vector<double> work_;         // (3 num_nodes) the solve's permuted vector
   std::vector<int> iperm_;           // (3 num_nodes) the factor's row of each unknown
   std::vector<double> y_, t_;        // inverse_block's scratch: Y (row-major) and an update
-  std::vector<char> live_;           // (3 num_nodes) rows of Y that can be nonzero
+  std::vector<double> x_;            // the supernodal solve's right-hand sides (row-major)
+  int max_nsrow_ = 0;                // the supernodes' largest row count
+  void supernodal_solve(const double* r, double* z, int k);
+  std::vector<char> live_;  // (3 num_nodes) rows of Y that can be nonzero
   std::unique_ptr<Cholmod> c_;
   bool factored_ = false;
 };
