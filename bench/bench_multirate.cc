@@ -9,7 +9,7 @@
 //                             [--newton N] [--newton-tolerance M] [--cg-tolerance T]
 //                             [--refactor-every N] [--refactor-iterations N]
 //                             [--per-tick [--realtime] [--replies] [--lift] [--speed V]
-//                             [--ref-sweeps N]]
+//                             [--ref-sweeps N] [--warmup SECONDS]]
 //                             [--churn SECONDS]
 //                             [--surface | --nodes] SCENE
 // --surface, --nodes: the probe on surface contact or the node law whatever the scene says.
@@ -20,6 +20,8 @@
 // joint_proxy_step); --ref-sweeps N instead steps N times per tick with the probe where it is
 // (the proxy moved against the nodes, then the body with the proxy held, N times: N = 1 is the
 // single-rate step; a larger N approaches the quasi-static response, time running N times over);
+// --warmup S: the served body ticks S seconds with the probe off the surface before the run (as a
+// server does before its first press), so that its first steps and factorisations are not in it.
 // BENCH_REFERENCE=FILE: the per-tick reference's forces kept in FILE and read back by a later run
 // of the same body and path (served settings compared without solving the reference again).
 // --lift: after the press and its hold the probe goes straight back out at the press's speed
@@ -106,7 +108,7 @@ void PrintByEvaluations(const std::vector<int>& evaluations, const std::vector<d
 // 1e-10): the per-tick force's RMS and largest relative error (over the ticks above a fifth of
 // the largest force).
 int PerTick(const Model& served, const Vec3& top, int up, double depth, bool realtime, bool replies,
-            bool lift, double speed, int sweeps) {
+            bool lift, double speed, int sweeps, double warmup) {
   const int side = (up + 1) % 3;
   const double r = served.probes[0].radius;
   const double t_press = (depth + 1e-3) / speed, t_slide = t_press + 0.2;
@@ -195,7 +197,24 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
                           factoring && std::string(factoring) == "inline" ? loop::Factoring::kInline
                           : realtime ? loop::Factoring::kBackground
                                      : loop::Factoring::kWaited);
-  Timer t_tick;  // the 1 kHz thread's tick (its contact solve), not the body's step
+  // --warmup: the served body ticked with the probe where the path starts (off the surface) before
+  // the run, as a server is before its first client presses: the body's first steps (block-Jacobi
+  // CG until the first factor, the first factorisations) are not in the run.
+  const int warm = static_cast<int>(std::lround(warmup / served.options.dt));
+  const auto warm_start = std::chrono::steady_clock::now();
+  for (int t = 0; t < warm; ++t) {
+    set_probe(s, 0, path(0));
+    worker.tick(served, s);
+    if (realtime)
+      std::this_thread::sleep_until(warm_start + std::chrono::microseconds(1000 * (t + 1)));
+    else
+      while (worker.stepping()) std::this_thread::sleep_for(std::chrono::microseconds(50));
+  }
+  const std::uint64_t steps0 = worker.body_steps(), factors0 = worker.factorizations(),
+                      frozen0 = worker.frozen_answers();
+  Timer t_tick;                 // the 1 kHz thread's tick (its contact solve), not the body's step
+  std::vector<double> body_ms;  // wall time of each body step handed over, with its models
+  std::uint64_t last_steps = steps0;
   std::vector<int> evaluations(ticks, 0);
   const auto start = std::chrono::steady_clock::now();
   for (int t = 0; t < ticks; ++t) {
@@ -213,6 +232,10 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
     else
       while (worker.stepping()) std::this_thread::sleep_for(std::chrono::microseconds(50));
     force[t] = s.probes[0].force;
+    if (worker.body_steps() != last_steps) {  // a body step handed over: its step and models
+      last_steps = worker.body_steps();
+      body_ms.push_back(1e-6 * static_cast<double>(worker.last_body_ns()));
+    }
   }
   double fmax = 0, e2 = 0, f2 = 0, worst = 0;
   for (const Vec3& f : ref_force) fmax = std::max(fmax, f.norm());
@@ -246,14 +269,15 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
       "per tick, press %.1f mm / hold / %s (%d ticks): largest force %.4f N; "
       "served against converged every tick: RMS %.3f %%, largest %.3f %%; %llu body steps, "
       "%llu factorisations, %llu estimated answers; converged step p50 %.1f ms; tick CPU p50 / "
-      "p99 / max %.0f / %.0f / %.0f us\n",
+      "p99 / max %.0f / %.0f / %.0f us; body step wall p50 / p90 / max %.1f / %.1f / %.1f ms\n",
       1e3 * depth, lift ? "lift" : "slide 5 mm / hold", ticks, fmax,
       100 * std::sqrt(e2 / std::max(f2, 1e-300)), 100 * worst,
-      static_cast<unsigned long long>(worker.body_steps()),
-      static_cast<unsigned long long>(worker.factorizations()),
-      static_cast<unsigned long long>(worker.frozen_answers()),
+      static_cast<unsigned long long>(worker.body_steps() - steps0),
+      static_cast<unsigned long long>(worker.factorizations() - factors0),
+      static_cast<unsigned long long>(worker.frozen_answers() - frozen0),
       1e-3 * Percentile(t_ref.wall_us, 0.5), Percentile(t_tick.cpu_us, 0.5),
-      Percentile(t_tick.cpu_us, 0.99), Percentile(t_tick.cpu_us, 1.0));
+      Percentile(t_tick.cpu_us, 0.99), Percentile(t_tick.cpu_us, 1.0), Percentile(body_ms, 0.5),
+      Percentile(body_ms, 0.9), Percentile(body_ms, 1.0));
   // BENCH_FORCES=1: every 20th tick, ticks 1100-1134 and those more than 5 % off the converged
   // force; BENCH_FORCES=A-B: every tick from A to B - 1 too.
   if (const char* env = std::getenv("BENCH_FORCES")) {
@@ -336,6 +360,7 @@ int main(int argc, char** argv) {
   bool per_tick = false, realtime = false, replies = false, lift = false;
   double speed = 0.01;  // m/s, the press's (and the lift's)
   int sweeps = 0;       // reference steps per tick (0: surface contact's joint reference)
+  double warmup = 0;    // s, ticks before the per-tick run (--warmup)
   double churn = 0;
   std::optional<ContactModel> contact;  // the scene's unless given
   int up = 2, steps = 40;
@@ -358,6 +383,8 @@ int main(int argc, char** argv) {
       lift = true;
     else if (o == "--speed" && a + 1 < argc)
       speed = std::atof(argv[++a]);
+    else if (o == "--warmup" && a + 1 < argc)
+      warmup = std::atof(argv[++a]);
     else if (o == "--ref-sweeps" && a + 1 < argc)
       sweeps = std::max(1, std::atoi(argv[++a]));
     else if (o == "--replies")
@@ -409,7 +436,8 @@ int main(int argc, char** argv) {
         (top < 0 || (body.rest[i] - mid).norm() < (body.rest[top] - mid).norm()))
       top = i;
   if (per_tick)
-    return PerTick(served, body.rest[top], up, depth, realtime, replies, lift, speed, sweeps);
+    return PerTick(served, body.rest[top], up, depth, realtime, replies, lift, speed, sweeps,
+                   warmup);
   const double r = served.probes[0].radius;
   const double reach = served.options.body_reach > 0 ? served.options.body_reach : 0.5 * r;
   auto probe_at = [&](int k) {
