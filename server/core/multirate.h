@@ -15,10 +15,11 @@
 // With c = c0, dx = 0 solves (1) exactly: between body steps the force is continuous with the
 // body's own, and moves with the probe as the body would, to first order in the body's response.
 //
-// Built on the body's thread after a body step (LocalModelBuilder: one force evaluation, an
-// assembly and a numeric factorisation, which allocates inside CHOLMOD, and 3 |R| solves; or,
-// between factorisations, W from the last factor with the contact Jacobian it held); solved
-// on the 1 kHz thread (haptic_contact: no allocation, the region's capacity fixed at load).
+// Built on the body's thread after a body step (LocalModelBuilder: one force evaluation and an
+// assembly; the numeric factorisation, which allocates inside CHOLMOD, there or on a thread of
+// its own (loop/body_worker.h); W from the factor in hand with the contact Jacobian it held, by
+// one pruned forward solve, SystemFactor::inverse_block); solved on the 1 kHz thread
+// (haptic_contact: no allocation, the region's capacity fixed at load).
 //
 // Surface contact (ContactModel::kSurface, core/contact.h). f is the contact layer's force on the
 // nodes with the tool at its proxy, and the region is the nodes of the surface triangles within

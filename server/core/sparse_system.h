@@ -61,7 +61,7 @@ class SystemFactor {
   // z = A_f^-1 r, component-major vectors of 3 n entries; z is zero on fixed axes.
   void solve(const double* r, double* z);
   // The same for k right-hand sides at once (r and z: k such vectors one after the other), in
-  // one pass of the supernodal solve (allocates at a new k).
+  // one pass of the supernodal solve (allocates its scratch at a larger k).
   void solve_many(const double* r, double* z, int k);
   // The block of A_f^-1 over the given nodes' 3 num axes (node a's axis c at row and column
   // 3 a + c), into w (column-major, leading dimension ld >= 3 num): zero rows and columns on
