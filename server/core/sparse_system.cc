@@ -267,6 +267,81 @@ void SystemFactor::solve_many(const double* r, double* z, int k) {
   supernodal_solve(r, z, k);
 }
 
+namespace {
+// Right-hand sides of a supernodal sweep, k per row of the permuted system (row-major), a plain
+// vector when there is one (Eigen's vector kernels: about 10 % faster solves than k = 1 rows).
+template <int Cols>
+using Rhs =
+    Eigen::Matrix<double, Eigen::Dynamic, Cols, Cols == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
+
+// The supernodal factor's columns of supernode s: nsrow x nscol, column-major at px[s], rows
+// Ls[pi[s]..pi[s + 1]) (the first nscol its own columns).
+struct Supernodes {
+  const int *super, *pi, *px, *ls;
+  const double* lx;
+  size_t count;
+  explicit Supernodes(const cholmod_factor* L)
+      : super(static_cast<const int*>(L->super)),
+        pi(static_cast<const int*>(L->pi)),
+        px(static_cast<const int*>(L->px)),
+        ls(static_cast<const int*>(L->s)),
+        lx(static_cast<const double*>(L->x)),
+        count(L->nsuper) {}
+  int first(size_t s) const { return super[s]; }
+  int cols(size_t s) const { return super[s + 1] - super[s]; }
+  int below(size_t s) const { return pi[s + 1] - pi[s] - cols(s); }
+  const int* rows_below(size_t s) const { return ls + pi[s] + cols(s); }
+  Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> block(size_t s) const {
+    const int ld = pi[s + 1] - pi[s];
+    return {lx + px[s], ld, cols(s), Eigen::OuterStride<>(ld)};
+  }
+};
+
+// L Y = Y in place (x: k entries per row; t: scratch of the largest supernode's rows below times
+// k). With `live` (a flag per row, set where Y can be nonzero), supernodes whose rows are all
+// zero are skipped and the flags follow the rows each sweep fills.
+template <int Cols>
+void forward_sweep(const Supernodes& L, double* x, double* t, int k, char* live = nullptr) {
+  for (size_t s = 0; s < L.count; ++s) {
+    const int k1 = L.first(s), nscol = L.cols(s), below = L.below(s);
+    if (live) {
+      if (std::find(live + k1, live + k1 + nscol, 1) == live + k1 + nscol) continue;
+      std::fill(live + k1, live + k1 + nscol, 1);  // the diagonal block's solve fills them
+    }
+    const auto Ls = L.block(s);
+    Eigen::Map<Rhs<Cols>> X1(x + static_cast<size_t>(k1) * k, nscol, k);
+    Ls.topRows(nscol).template triangularView<Eigen::Lower>().solveInPlace(X1);
+    if (below == 0) continue;
+    Eigen::Map<Rhs<Cols>> T(t, below, k);
+    T.noalias() = Ls.bottomRows(below) * X1;
+    const int* rows = L.rows_below(s);
+    for (int q = 0; q < below; ++q) {
+      double* xr = x + static_cast<size_t>(rows[q]) * k;
+      const double* tr = t + static_cast<size_t>(q) * k;
+      for (int c = 0; c < k; ++c) xr[c] -= tr[c];
+      if (live) live[rows[q]] = 1;
+    }
+  }
+}
+
+// L^T X = X in place (as forward_sweep, without skipping).
+template <int Cols>
+void backward_sweep(const Supernodes& L, double* x, double* t, int k) {
+  for (size_t s = L.count; s-- > 0;) {
+    const int k1 = L.first(s), nscol = L.cols(s), below = L.below(s);
+    const auto Ls = L.block(s);
+    Eigen::Map<Rhs<Cols>> X1(x + static_cast<size_t>(k1) * k, nscol, k);
+    if (below > 0) {
+      const int* rows = L.rows_below(s);
+      for (int q = 0; q < below; ++q)
+        std::copy_n(x + static_cast<size_t>(rows[q]) * k, k, t + static_cast<size_t>(q) * k);
+      X1.noalias() -= Ls.bottomRows(below).transpose() * Eigen::Map<const Rhs<Cols>>(t, below, k);
+    }
+    Ls.topRows(nscol).transpose().template triangularView<Eigen::Upper>().solveInPlace(X1);
+  }
+}
+}  // namespace
+
 // P^T L^-T L^-1 P with the supernodal factor read in place, supernode by supernode (Eigen's
 // dense kernels on each one's columns, nsrow x nscol column-major at px[s], rows Ls[pi[s]..]):
 // no BLAS call, so that the body thread's solves never run BLAS beside the factor thread's
@@ -274,13 +349,6 @@ void SystemFactor::solve_many(const double* r, double* z, int k) {
 // allocation once the scratch has the size of k right-hand sides.
 void SystemFactor::supernodal_solve(const double* r, double* z, int k) {
   const int nn = nn_, n = 3 * nn;
-  const cholmod_factor* L = c_->L;
-  const auto* super = static_cast<const int*>(L->super);
-  const auto* pi = static_cast<const int*>(L->pi);
-  const auto* px = static_cast<const int*>(L->px);
-  const auto* ls = static_cast<const int*>(L->s);
-  const auto* lx = static_cast<const double*>(L->x);
-  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   if (x_.size() < static_cast<size_t>(n) * k) x_.resize(static_cast<size_t>(n) * k);
   if (t_.size() < static_cast<size_t>(max_nsrow_) * k)
     t_.resize(static_cast<size_t>(max_nsrow_) * k);
@@ -291,67 +359,13 @@ void SystemFactor::supernodal_solve(const double* r, double* z, int k) {
       const double f = free_[c * nn + i];
       for (int q = 0; q < k; ++q) xr[q] = r[static_cast<size_t>(q) * n + c * nn + i] * f;
     }
-  const size_t nsuper = L->nsuper;
-  if (k == 1) {                            // one right-hand side: vector kernels
-    for (size_t s = 0; s < nsuper; ++s) {  // L y = P b
-      const int k1 = super[s], nscol = super[s + 1] - k1, below = pi[s + 1] - pi[s] - nscol;
-      const int ld = nscol + below;
-      Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Ls(lx + px[s], ld, nscol,
-                                                                    Eigen::OuterStride<>(ld));
-      Eigen::Map<Eigen::VectorXd> x1(x_.data() + k1, nscol);
-      Ls.topRows(nscol).triangularView<Eigen::Lower>().solveInPlace(x1);
-      if (below == 0) continue;
-      Eigen::Map<Eigen::VectorXd> t(t_.data(), below);
-      t.noalias() = Ls.bottomRows(below) * x1;
-      const int* rows = ls + pi[s] + nscol;
-      for (int q = 0; q < below; ++q) x_[rows[q]] -= t_[q];
-    }
-    for (size_t s = nsuper; s-- > 0;) {  // L^T x = y
-      const int k1 = super[s], nscol = super[s + 1] - k1, below = pi[s + 1] - pi[s] - nscol;
-      const int ld = nscol + below;
-      Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Ls(lx + px[s], ld, nscol,
-                                                                    Eigen::OuterStride<>(ld));
-      Eigen::Map<Eigen::VectorXd> x1(x_.data() + k1, nscol);
-      if (below > 0) {
-        const int* rows = ls + pi[s] + nscol;
-        for (int q = 0; q < below; ++q) t_[q] = x_[rows[q]];
-        x1.noalias() -=
-            Ls.bottomRows(below).transpose() * Eigen::Map<const Eigen::VectorXd>(t_.data(), below);
-      }
-      Ls.topRows(nscol).transpose().triangularView<Eigen::Upper>().solveInPlace(x1);
-    }
+  const Supernodes L(c_->L);
+  if (k == 1) {
+    forward_sweep<1>(L, x_.data(), t_.data(), 1);
+    backward_sweep<1>(L, x_.data(), t_.data(), 1);
   } else {
-    for (size_t s = 0; s < nsuper; ++s) {  // L Y = P b
-      const int k1 = super[s], nscol = super[s + 1] - k1, below = pi[s + 1] - pi[s] - nscol;
-      Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Ls(
-          lx + px[s], nscol + below, nscol, Eigen::OuterStride<>(nscol + below));
-      Eigen::Map<RowMajor> X1(x_.data() + static_cast<size_t>(k1) * k, nscol, k);
-      Ls.topRows(nscol).triangularView<Eigen::Lower>().solveInPlace(X1);
-      if (below == 0) continue;
-      Eigen::Map<RowMajor> T(t_.data(), below, k);
-      T.noalias() = Ls.bottomRows(below) * X1;
-      const int* rows = ls + pi[s] + nscol;
-      for (int q = 0; q < below; ++q) {
-        double* xr = x_.data() + static_cast<size_t>(rows[q]) * k;
-        const double* tr = t_.data() + static_cast<size_t>(q) * k;
-        for (int c = 0; c < k; ++c) xr[c] -= tr[c];
-      }
-    }
-    for (size_t s = nsuper; s-- > 0;) {  // L^T X = Y
-      const int k1 = super[s], nscol = super[s + 1] - k1, below = pi[s + 1] - pi[s] - nscol;
-      Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Ls(
-          lx + px[s], nscol + below, nscol, Eigen::OuterStride<>(nscol + below));
-      Eigen::Map<RowMajor> X1(x_.data() + static_cast<size_t>(k1) * k, nscol, k);
-      if (below > 0) {
-        const int* rows = ls + pi[s] + nscol;
-        for (int q = 0; q < below; ++q)
-          std::copy_n(x_.data() + static_cast<size_t>(rows[q]) * k, k,
-                      t_.data() + static_cast<size_t>(q) * k);
-        Eigen::Map<const RowMajor> T(t_.data(), below, k);
-        X1.noalias() -= Ls.bottomRows(below).transpose() * T;
-      }
-      Ls.topRows(nscol).transpose().triangularView<Eigen::Upper>().solveInPlace(X1);
-    }
+    forward_sweep<Eigen::Dynamic>(L, x_.data(), t_.data(), k);
+    backward_sweep<Eigen::Dynamic>(L, x_.data(), t_.data(), k);
   }
   for (int i = 0; i < nn; ++i)
     for (int c = 0; c < 3; ++c) {
@@ -390,33 +404,9 @@ void SystemFactor::inverse_block(const int* nodes, int num, double* w, int ld) {
     y_[static_cast<size_t>(row) * k + col] = 1.0;
     live_[row] = 1;
   }
-  const auto* super = static_cast<const int*>(L->super);
-  const auto* pi = static_cast<const int*>(L->pi);
-  const auto* px = static_cast<const int*>(L->px);
-  const auto* ls = static_cast<const int*>(L->s);
-  const auto* lx = static_cast<const double*>(L->x);
-  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  for (size_t s = 0; s < L->nsuper; ++s) {
-    const int k1 = super[s], k2 = super[s + 1], nscol = k2 - k1;
-    const int nsrow = pi[s + 1] - pi[s];
-    if (std::find(live_.begin() + k1, live_.begin() + k2, 1) == live_.begin() + k2) continue;
-    std::fill(live_.begin() + k1, live_.begin() + k2, 1);  // the diagonal block's solve fills them
-    Eigen::Map<const Eigen::MatrixXd> Ls(lx + px[s], nsrow, nscol);
-    Eigen::Map<RowMajor> Y1(y_.data() + static_cast<size_t>(k1) * k, nscol, k);
-    Ls.topRows(nscol).triangularView<Eigen::Lower>().solveInPlace(Y1);
-    const int below = nsrow - nscol;
-    if (below == 0) continue;
-    t_.resize(static_cast<size_t>(below) * k);
-    Eigen::Map<RowMajor> T(t_.data(), below, k);
-    T.noalias() = Ls.bottomRows(below) * Y1;
-    const int* rows = ls + pi[s] + nscol;
-    for (int r = 0; r < below; ++r) {
-      double* yr = y_.data() + static_cast<size_t>(rows[r]) * k;
-      const double* tr = t_.data() + static_cast<size_t>(r) * k;
-      for (int c = 0; c < k; ++c) yr[c] -= tr[c];
-      live_[rows[r]] = 1;
-    }
-  }
+  if (t_.size() < static_cast<size_t>(max_nsrow_) * k)
+    t_.resize(static_cast<size_t>(max_nsrow_) * k);
+  forward_sweep<Eigen::Dynamic>(Supernodes(L), y_.data(), t_.data(), k, live_.data());
   // W = Y^T Y over Y's live rows, gathered.
   int m = 0;
   for (int row = 0; row < n; ++row)
@@ -427,7 +417,7 @@ void SystemFactor::inverse_block(const int* nodes, int num, double* w, int ld) {
                   y_.begin() + static_cast<size_t>(m) * k);
       ++m;
     }
-  Eigen::Map<const RowMajor> G(y_.data(), m, k);
+  Eigen::Map<const Rhs<Eigen::Dynamic>> G(y_.data(), m, k);
   Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>> W(w, k, k, Eigen::OuterStride<>(ld));
   W.noalias() = G.transpose() * G;
 }
