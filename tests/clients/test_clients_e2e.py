@@ -63,9 +63,13 @@ def main():
         time.sleep(1.0)
         check(server.poll() is None, "server is running")
 
+        # Paced at the script clock (1 kHz): unpaced, the 601 samples go out in ~40 ms, the cube
+        # steps ~40 times meanwhile, and which depth each reply's force belongs to depends on the
+        # machine's load (a busy run read band means 0.63, 1.58, 1.25 N).
         rec = os.path.join(tmp, "press.csv")
         r = subprocess.run([args.probe, "--endpoint", ep(p), "--script", "press", "--depth", "0.006",
-                            "--approach", "0.004", "--speed", "0.02", "--hold", "0.1", "-o", rec],
+                            "--approach", "0.004", "--speed", "0.02", "--hold", "0.1", "--realtime",
+                            "-o", rec],
                            capture_output=True, text=True, timeout=60)
         check(r.returncode == 0, f"conica-probe press exits 0 ({r.stderr.strip()})")
         rows, depth, fn = press_forces(rec)
