@@ -211,7 +211,8 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
       while (worker.stepping()) std::this_thread::sleep_for(std::chrono::microseconds(50));
   }
   const std::uint64_t steps0 = worker.body_steps(), factors0 = worker.factorizations(),
-                      frozen0 = worker.frozen_answers();
+                      frozen0 = worker.frozen_answers(), newton0 = worker.newton_iterations(),
+                      cg0 = worker.cg_iterations();
   Timer t_tick;                 // the 1 kHz thread's tick (its contact solve), not the body's step
   std::vector<double> body_ms;  // wall time of each body step handed over, with its models
   std::uint64_t last_steps = steps0;
@@ -269,7 +270,8 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
       "per tick, press %.1f mm / hold / %s (%d ticks): largest force %.4f N; "
       "served against converged every tick: RMS %.3f %%, largest %.3f %%; %llu body steps, "
       "%llu factorisations, %llu estimated answers; converged step p50 %.1f ms; tick CPU p50 / "
-      "p99 / max %.0f / %.0f / %.0f us; body step wall p50 / p90 / max %.1f / %.1f / %.1f ms\n",
+      "p99 / max %.0f / %.0f / %.0f us; body step wall p50 / p90 / max %.1f / %.1f / %.1f ms; "
+      "Newton iterations per body step %.2f, CG iterations per Newton iteration %.1f\n",
       1e3 * depth, lift ? "lift" : "slide 5 mm / hold", ticks, fmax,
       100 * std::sqrt(e2 / std::max(f2, 1e-300)), 100 * worst,
       static_cast<unsigned long long>(worker.body_steps() - steps0),
@@ -277,7 +279,11 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
       static_cast<unsigned long long>(worker.frozen_answers() - frozen0),
       1e-3 * Percentile(t_ref.wall_us, 0.5), Percentile(t_tick.cpu_us, 0.5),
       Percentile(t_tick.cpu_us, 0.99), Percentile(t_tick.cpu_us, 1.0), Percentile(body_ms, 0.5),
-      Percentile(body_ms, 0.9), Percentile(body_ms, 1.0));
+      Percentile(body_ms, 0.9), Percentile(body_ms, 1.0),
+      static_cast<double>(worker.newton_iterations() - newton0) /
+          std::max<double>(1, static_cast<double>(worker.body_steps() - steps0)),
+      static_cast<double>(worker.cg_iterations() - cg0) /
+          std::max<double>(1, static_cast<double>(worker.newton_iterations() - newton0)));
   // BENCH_FORCES=1: every 20th tick, ticks 1100-1134 and those more than 5 % off the converged
   // force; BENCH_FORCES=A-B: every tick from A to B - 1 too.
   if (const char* env = std::getenv("BENCH_FORCES")) {
@@ -438,6 +444,17 @@ int main(int argc, char** argv) {
   if (per_tick)
     return PerTick(served, body.rest[top], up, depth, realtime, replies, lift, speed, sweeps,
                    warmup);
+  // The body's cost below steps the body alone, the probe's pose given: surface contact's proxy
+  // is moved by the 1 kHz tick (haptic_contact), which this path does not run, so a surface probe
+  // would stay where it first touched and its coupling spring would read the tool's travel.
+  if (body.probes[0].contact == ContactModel::kSurface) {
+    std::fprintf(stderr,
+                 "%s: the probe uses surface contact, whose proxy the 1 kHz tick moves: measure "
+                 "its body cost with --per-tick (the body step's wall time is its last column), "
+                 "or this path with --nodes\n",
+                 path.c_str());
+    return 2;
+  }
   const double r = served.probes[0].radius;
   const double reach = served.options.body_reach > 0 ? served.options.body_reach : 0.5 * r;
   auto probe_at = [&](int k) {

@@ -224,6 +224,9 @@ ElementScratch element_scratch(const Model& m) {
     E.shear_coef.assign(m.shear_v0.size(), 0.0);
     E.element_lap.assign(16 * m.tetrahedra.size() + 64 * m.hexahedra.size(), 0.0);
   }
+  if ((m.shear_modulus > 0 || m.bulk_modulus > 0) && m.options.exact_tangent &&
+      m.options.integrator == Integrator::kImplicitEuler)
+    E.tet_tangent.assign(45 * m.tetrahedra.size(), 0.0);
   if (m.bulk_modulus > 0) {
     E.volume_grad.assign(4 * m.tetrahedra.size() + 8 * m.hexahedra.size(), Vec3::Zero());
     E.volume_coef.assign(m.tetrahedra.size() + m.hexahedra.size(), 0.0);
@@ -244,6 +247,11 @@ ContactScratch contact_scratch(const Model& m) {
   C.nodes.assign(nn, 0);
   C.in_contact.assign(nn, 0);
   C.candidates.assign(m.probes.size(), ContactCandidates(m));
+  size_t surface_probes = 0;
+  for (const ProbeSpec& p : m.probes) surface_probes += p.contact == ContactModel::kSurface;
+  C.pair_tris.assign(surface_probes * m.surface.size(), 0);
+  C.pair_probe.assign(C.pair_tris.size(), 0);
+  C.pair.assign(6 * C.pair_tris.size(), Mat3::Zero());
   return C;
 }
 

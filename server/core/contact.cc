@@ -173,8 +173,11 @@ struct Accumulator {
       if (b[a]) *b[a] += symmetric(bl[a]);
       if (ar[a]) *ar[a] += al[a];
     }
-    if (pr)
-      for (int j = 0; j < 6; ++j) pr[j] += symmetric(pl[j]) + symmetric(plc[j]);
+    if (pr) {
+      const bool curvature = !(terms & kToolPairPressureOnly);
+      for (int j = 0; j < 6; ++j)
+        pr[j] += curvature ? Mat3(symmetric(pl[j]) + symmetric(plc[j])) : symmetric(pl[j]);
+    }
   }
 };
 

@@ -199,6 +199,9 @@ enum ToolTerms : unsigned {
   kToolEnergy = 1u,     // ToolContact::energy
   kToolStiffness = 2u,  // ToolContact::stiffness, stiffness_psd
   kToolAll = 3u,
+  // node_pair's blocks without the curvature term (the pressure term alone: positive
+  // semi-definite, what the implicit system takes)
+  kToolPairPressureOnly = 4u,
 };
 
 // What a tool at a fixed pose feels from the surface with the nodes held.

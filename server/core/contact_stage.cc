@@ -76,6 +76,7 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
     ws.contact.in_contact[i] = 0;
   }
   ws.contact.num_nodes = 0;
+  ws.contact.num_pairs = 0;
   for (size_t q = 0; q < m.probes.size(); ++q) {
     if (m.probes[q].contact == ContactModel::kNodes) {
       ProbeState& p = s.probes[q];
@@ -102,9 +103,27 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
       ws.contact.v_ref[i] = p.proxy_velocity;
     }
     ToolContact c;
-    tool_contact(m, static_cast<int>(q), R, p.proxy, s.x, cand.data(),
-                 static_cast<int>(cand.size()), &c, ws.force.data(), ws.contact.block.data(),
-                 kToolForceOnly);
+    const int nc = static_cast<int>(cand.size());
+    if (with_jacobian) {  // the implicit system: the layer's pair blocks, face by face
+      const int base = ws.contact.num_pairs;
+      Mat3* pairs = ws.contact.pair.data() + 6 * base;
+      std::fill(pairs, pairs + 6 * nc, Mat3::Zero());
+      tool_contact(m, static_cast<int>(q), R, p.proxy, s.x, cand.data(), nc, &c, ws.force.data(),
+                   nullptr, kToolForceOnly | kToolPairPressureOnly, nullptr, pairs);
+      int kept = 0;  // the touched faces, in place
+      for (int t = 0; t < nc; ++t) {
+        bool touched = false;
+        for (int j = 0; j < 6 && !touched; ++j) touched = pairs[6 * t + j].squaredNorm() > 0;
+        if (!touched) continue;
+        if (kept != t) std::copy(pairs + 6 * t, pairs + 6 * t + 6, pairs + 6 * kept);
+        ws.contact.pair_probe[base + kept] = static_cast<int>(q);
+        ws.contact.pair_tris[base + kept++] = cand[t];
+      }
+      ws.contact.num_pairs = base + kept;
+    } else {
+      tool_contact(m, static_cast<int>(q), R, p.proxy, s.x, cand.data(), nc, &c, ws.force.data(),
+                   ws.contact.block.data(), kToolForceOnly);
+    }
     if (c.faces == 0) continue;
     friction_forces(m, static_cast<int>(q), p, s.x, ws.force.data(), ws.contact.block.data());
     // The layer's reference velocity (two probes on one node: the last one's, approximate).

@@ -1,6 +1,8 @@
 // The element terms (core/element_terms.h): energies, forces and what the implicit system keeps.
 #include "core/element_terms.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -225,6 +227,148 @@ void element_term_hessian(const Model& m, int e, const Vec3* x, double* H) {
   for (int r = 0; r < n; ++r)
     for (int c = r + 1; c < n; ++c)
       H[r * n + c] = H[c * n + r] = 0.5 * (H[r * n + c] + H[c * n + r]);
+}
+
+namespace {
+
+// The closed-form Hessian of tetrahedron e's element energy at x[0..4): its blocks (a, c) for a, c
+// in [a0, 4) into H (row-major, (3 (4 - a0))^2), H[(3 a + i) n + 3 c + k] with a, c counted from
+// a0.
+//
+// Per rest volume |V0| the energy is W(F) = (kappa / 2) (J - 1)^2 + psi(I1b) with
+// psi = (mu / 2) ((I1b - 3) + beta (I1b - 3)^2) (core/volume.h), F = sum_a x_a b_a^T. With
+// u_a = F^-T b_a, f_a = F b_a and g_a = G b_a, G = dI1b/dF = J^(-2/3) (2 F - (2/3) I1 F^-T),
+// the directional derivative of the stress P = dW/dF along dF = e_k b_c^T, applied to b_a, is
+//   dP b_a = c1 u_a + c2 g_a + c3 u_c u_a[k] + c4 e_k (b_c . b_a),
+//   c1 = kappa J (2 J - 1) u_c[k] - (4/3) psi' J^(-2/3) f_c[k],   c2 = -(2/3) psi' u_c[k] + psi''
+//   g_c[k], c3 = -kappa (J - 1) J + (2/3) psi' J^(-2/3) I1,                 c4 = 2 psi' J^(-2/3),
+// (psi' = dpsi/dI1b, psi'' = mu beta), each term weighted by its rest volume.
+void tet_hessian_blocks(const Model& m, int e, const Vec3* x, int a0, double* H) {
+  Vec3 bl[4];
+  const Vec3* b = bl;
+  if (m.shear_modulus > 0) {
+    b = m.shear_b.data() + 4 * e;
+  } else {  // the shape gradients from the rest tetrahedron
+    Vec3 xr[4];
+    for (int a = 0; a < 4; ++a) xr[a] = m.rest[m.tetrahedra[e][a]];
+    tet_shape_gradients(xr, bl);
+  }
+  Mat3 F = Mat3::Zero();
+  for (int a = 0; a < 4; ++a) F.noalias() += x[a] * b[a].transpose();
+  Mat3 cof;  // J F^-T
+  cof.col(0) = F.col(1).cross(F.col(2));
+  cof.col(1) = F.col(2).cross(F.col(0));
+  cof.col(2) = F.col(0).cross(F.col(1));
+  const double J = F.col(0).dot(cof.col(0));
+  const int n = 3 * (4 - a0);
+  if (J == 0) {  // degenerate: no F^-T (the forces push it apart; the hard stop keeps springs)
+    for (int r = 0; r < n * n; ++r) H[r] = 0;
+    return;
+  }
+  const double wv = m.bulk_modulus > 0 ? std::abs(m.tet_rest_volume[e]) * m.bulk_modulus : 0.0;
+  const bool shear = m.shear_modulus > 0 && J > 0;  // isochoric_yeoh: no stress at J <= 0
+  const double ws = shear ? m.shear_v0[e] : 0.0;
+  const Mat3 FiT = cof / J;
+  const double i1 = F.squaredNorm();
+  const double jm = shear ? 1 / std::cbrt(J * J) : 0.0;  // J^(-2/3)
+  const double d = jm * i1 - 3;
+  const double psi1 = ws * 0.5 * m.shear_modulus * (1 + 2 * m.shear_stiffening * d);
+  const double psi2 = ws * m.shear_modulus * m.shear_stiffening;
+  const double kv = wv * J * (2 * J - 1);
+  const double c3 = -wv * (J - 1) * J + (2.0 / 3.0) * psi1 * jm * i1;
+  const double c4 = 2 * psi1 * jm;
+  Vec3 u[4], f[4], g[4];
+  for (int a = 0; a < 4; ++a) {
+    u[a] = FiT * b[a];
+    f[a] = F * b[a];
+    g[a] = jm * (2 * f[a] - (2.0 / 3.0) * i1 * u[a]);
+  }
+  for (int c = a0; c < 4; ++c)
+    for (int k = 0; k < 3; ++k) {
+      const double c1 = kv * u[c][k] - (4.0 / 3.0) * psi1 * jm * f[c][k];
+      const double c2 = -(2.0 / 3.0) * psi1 * u[c][k] + psi2 * g[c][k];
+      const int col = 3 * (c - a0) + k;
+      for (int a = a0; a < 4; ++a) {
+        Vec3 v = c1 * u[a] + c2 * g[a] + (c3 * u[a][k]) * u[c];
+        v[k] += c4 * b[c].dot(b[a]);
+        for (int i = 0; i < 3; ++i) H[(3 * (a - a0) + i) * n + col] = v[i];
+      }
+    }
+}
+
+}  // namespace
+
+void tet_term_hessian(const Model& m, int e, const Vec3* x, double* H) {
+  tet_hessian_blocks(m, e, x, 0, H);
+}
+
+void expand_tet_tangent(const double* packed, double* H) {
+  double T[81];
+  for (int r = 0; r < 9; ++r)
+    for (int c = r; c < 9; ++c) T[9 * r + c] = T[9 * c + r] = *packed++;
+  // Rows and columns of nodes 1-3 are T's; node 0's are minus their sums (sum_a b_a = 0).
+  for (int r = 0; r < 12; ++r)
+    for (int c = 0; c < 12; ++c) {
+      const int ar = r / 3, ac = c / 3, i = r % 3, k = c % 3;
+      double v = 0;
+      for (int a = ar == 0 ? 1 : ar; a <= (ar == 0 ? 3 : ar); ++a)
+        for (int b = ac == 0 ? 1 : ac; b <= (ac == 0 ? 3 : ac); ++b)
+          v += T[9 * (3 * (a - 1) + i) + 3 * (b - 1) + k];
+      H[12 * r + c] = (ar == 0) != (ac == 0) ? -v : v;
+    }
+}
+
+void tet_tangent_times(const double* packed, const std::array<int, 4>& nodes, int nn,
+                       const double* p, double* y) {
+  double d[9], z[9] = {};
+  for (int a = 1; a < 4; ++a)
+    for (int c = 0; c < 3; ++c) d[3 * (a - 1) + c] = p[c * nn + nodes[a]] - p[c * nn + nodes[0]];
+  for (int r = 0; r < 9; ++r) {
+    z[r] += packed[0] * d[r];
+    for (int c = r + 1; c < 9; ++c) {
+      z[r] += packed[c - r] * d[c];
+      z[c] += packed[c - r] * d[r];
+    }
+    packed += 9 - r;
+  }
+  for (int c = 0; c < 3; ++c) {
+    y[c * nn + nodes[0]] -= z[c] + z[3 + c] + z[6 + c];
+    for (int a = 1; a < 4; ++a) y[c * nn + nodes[a]] += z[3 * (a - 1) + c];
+  }
+}
+
+int prepare_tet_tangents(const Model& m, const std::vector<Vec3>& x, double h2, ElementScratch& E) {
+  const int nt = static_cast<int>(m.tetrahedra.size());
+  using Mat9 = Eigen::Matrix<double, 9, 9>;
+  Mat9 T;
+  Eigen::LLT<Mat9> llt;
+  Eigen::SelfAdjointEigenSolver<Mat9> eig;
+  int projected = 0;
+  for (int e = 0; e < nt; ++e) {
+    Vec3 xe[4];
+    for (int a = 0; a < 4; ++a) xe[a] = x[m.tetrahedra[e][a]];
+    tet_hessian_blocks(m, e, xe, 1, T.data());  // symmetric: row- or column-major alike
+    T = 0.5 * (T + T.transpose()).eval();
+    // No eigenvalue below -tol (the rotations of an element at rest are free, a compressed one's
+    // soften): kept as it is, checked by a Cholesky factorisation of T + tol I (a pivoted LDL^T
+    // of the singular T itself is not a reliable test). Otherwise (strongly compressed elements)
+    // its negative eigenvalues are clamped to zero (projected Newton), so that the system stays
+    // positive definite. tol is 1e-3 of the largest diagonal entry: a tenth of it projects most
+    // elements of a body sagging under gravity, at the cost of an eigensolver each; thirty times
+    // it let a node pressed into a block drive a body step astray (BodyWorkerTest).
+    const double tol = 1e-3 * T.diagonal().cwiseAbs().maxCoeff();
+    llt.compute(T + tol * Mat9::Identity());
+    if (llt.info() != Eigen::Success) {
+      ++projected;
+      eig.compute(T);
+      T = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
+          eig.eigenvectors().transpose();
+    }
+    double* t = E.tet_tangent.data() + 45 * static_cast<size_t>(e);
+    for (int r = 0; r < 9; ++r)
+      for (int c = r; c < 9; ++c) *t++ = h2 * T(r, c);
+  }
+  return projected;
 }
 
 template void element_term_forces<4>(const Model&, int, const Vec3*, Vec3*);

@@ -214,4 +214,26 @@ void element_term_forces(const Model& m, int e, const Vec3* x, Vec3* f);
 template <int N>
 void element_term_hessian(const Model& m, int e, const Vec3* x, double* H);
 
+// The same for tetrahedron e in closed form (the volume term and the isochoric Yeoh term, derived
+// in element_terms.cc), into H (row-major 12 x 12). May be indefinite.
+void tet_term_hessian(const Model& m, int e, const Vec3* x, double* H);
+
+// The implicit system's exact tangent of every tetrahedron at positions x (SolverOptions::
+// exact_tangent): h2 times the closed-form Hessian's 9 x 9 block over nodes 1-3 (an element's
+// energy depends on its nodes through the edges x_a - x_0 alone, so the blocks with node 0 are
+// minus sums of these), the upper triangle packed row by row (45 entries) into E.tet_tangent.
+// An element whose block has an eigenvalue below -1e-3 of its largest diagonal entry (strongly
+// compressed elements) has its negative eigenvalues clamped to zero (projected Newton). Returns
+// how many had.
+int prepare_tet_tangents(const Model& m, const std::vector<Vec3>& x, double h2, ElementScratch& E);
+
+// One tetrahedron's packed tangent (45 entries, prepare_tet_tangents) as its full 12 x 12 matrix
+// (row-major; the blocks with node 0 from the translation invariance).
+void expand_tet_tangent(const double* packed, double* H);
+
+// y += T p over one tetrahedron's nodes (component-major node vectors of nn nodes), T its packed
+// tangent.
+void tet_tangent_times(const double* packed, const std::array<int, 4>& nodes, int nn,
+                       const double* p, double* y);
+
 }  // namespace conica

@@ -215,6 +215,17 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
     y[nn + i] += yi.y();
     y[2 * nn + i] += yi.z();
   }
+  for (int t = 0; t < ws.contact.num_pairs; ++t) {  // the surface layers' faces
+    const auto& tri = m.surface[ws.contact.pair_tris[t]];
+    const Mat3* K = ws.contact.pair.data() + 6 * t;
+    Vec3 pa[3], ya[3];
+    for (int a = 0; a < 3; ++a) pa[a] = Vec3(p[tri[a]], p[nn + tri[a]], p[2 * nn + tri[a]]);
+    ya[0] = K[0] * pa[0] + K[3] * pa[1] + K[4] * pa[2];
+    ya[1] = K[3] * pa[0] + K[1] * pa[1] + K[5] * pa[2];
+    ya[2] = K[4] * pa[0] + K[5] * pa[1] + K[2] * pa[2];
+    for (int a = 0; a < 3; ++a)
+      for (int c = 0; c < 3; ++c) y[c * nn + tri[a]] += ws.system.h2 * ya[a][c];
+  }
   double* const w = ws.system.chunk.data();
   constexpr int kC = SpringLayout::kChunkSprings;
   if (ws.layout.runs.empty()) {
@@ -258,8 +269,15 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
     }
   }
   const double h2 = ws.system.h2;
+  const bool tangent = ws.elements.tangent;
   for_each_element(m, [&](auto n, int e, const auto& nodes) {
     constexpr int N = decltype(n)::value;
+    if constexpr (N == 4)
+      if (tangent) {
+        tet_tangent_times(ws.elements.tet_tangent.data() + 45 * static_cast<size_t>(e), nodes, nn,
+                          p, y);
+        return;
+      }
     double P[3][N], Y[3][N] = {};
     for (int a = 0; a < N; ++a)
       for (int c = 0; c < 3; ++c) P[c][a] = p[c * nn + nodes[a]];
@@ -301,6 +319,19 @@ void build_preconditioner(const Model& m, Workspace& ws) {
     d[4 * nn + i] += b(0, 2);
     d[5 * nn + i] += b(1, 2);
   }
+  for (int t = 0; t < ws.contact.num_pairs; ++t) {  // the surface layers' faces: K_aa
+    const auto& tri = m.surface[ws.contact.pair_tris[t]];
+    for (int a = 0; a < 3; ++a) {
+      const Mat3 b = ws.system.h2 * ws.contact.pair[6 * t + a];
+      const int i = tri[a];
+      d[i] += b(0, 0);
+      d[nn + i] += b(1, 1);
+      d[2 * nn + i] += b(2, 2);
+      d[3 * nn + i] += b(0, 1);
+      d[4 * nn + i] += b(0, 2);
+      d[5 * nn + i] += b(1, 2);
+    }
+  }
   double* const b = ws.system.chunk.data();
   constexpr int kC = SpringLayout::kChunkSprings;
   if (ws.layout.runs.empty()) {
@@ -327,8 +358,25 @@ void build_preconditioner(const Model& m, Workspace& ws) {
       }
     }
   }
+  const bool tangent = ws.elements.tangent;
   for_each_element(m, [&](auto n, int e, const auto& nodes) {
     constexpr int N = decltype(n)::value;
+    if constexpr (N == 4)
+      if (tangent) {
+        double H[144];
+        expand_tet_tangent(ws.elements.tet_tangent.data() + 45 * static_cast<size_t>(e), H);
+        for (int a = 0; a < 4; ++a) {
+          const double* B = H + 39 * a;  // block (a, a): row 3 a, column 3 a
+          const int i = nodes[a];
+          d[i] += B[0];
+          d[nn + i] += B[13];
+          d[2 * nn + i] += B[26];
+          d[3 * nn + i] += B[1];
+          d[4 * nn + i] += B[2];
+          d[5 * nn + i] += B[14];
+        }
+        return;
+      }
     for_each_term_reversed(m, [&](auto term) {
       term.template diagonal<N>(m, ws.elements, ws.system.h2, e, nodes, nn, d);
     });
@@ -372,6 +420,7 @@ int pcg(const Model& m, Workspace& ws, Precondition&& precondition) {
   const double* __restrict rhs = ws.system.rhs.data();
   std::fill(dx, dx + n3, 0.0);
   std::copy(rhs, rhs + n3, r);
+  ws.system.indefinite = false;
   double rz = precondition(r, z);
   std::copy(z, z + n3, p);
   const double bnorm2 = dot(n3, r, r);
@@ -380,7 +429,10 @@ int pcg(const Model& m, Workspace& ws, Precondition&& precondition) {
   for (; it < m.options.cg_iterations && bnorm2 > 0; ++it) {
     apply_system(m, ws, p, ap);
     const double pap = dot(n3, p, ap);
-    if (!(pap > 0)) break;
+    if (!(pap > 0)) {
+      ws.system.indefinite = true;
+      break;
+    }
     const double step = rz / pap;
     double rr = 0;
     for (int k = 0; k < n3; ++k) {
@@ -459,6 +511,14 @@ int factored_solve(const Model& m, State& s, Workspace& ws) {
 
 }  // namespace
 
+// The tetrahedra's exact tangent for this Newton iteration (SolverOptions::exact_tangent; the
+// workspace holds room for it only then), or the Gauss-Newton blocks.
+void prepare_tangent(const Model& m, const State& s, Workspace& ws, double h2) {
+  ElementScratch& E = ws.elements;
+  E.tangent = !m.tetrahedra.empty() && E.tet_tangent.size() == 45 * m.tetrahedra.size();
+  if (E.tangent) prepare_tet_tangents(m, s.x, h2, E);
+}
+
 void prepare_system_at(const Model& m, State& s, Workspace& ws, double h) {
   const int nn = m.num_nodes();
   const double mfac = 1.0 + h * m.options.mass_damping;
@@ -467,6 +527,7 @@ void prepare_system_at(const Model& m, State& s, Workspace& ws, double h) {
   ws.system.h2 = h * h;
   system_coefficients(m, ws, h);
   for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
+  prepare_tangent(m, s, ws, h * h);
 }
 
 void system_product(const Model& m, State& s, Workspace& ws, double h, const double* p, double* y) {
@@ -545,7 +606,15 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
     ws.system.h2 = h * h;
     system_coefficients(m, ws, h);
     for_each_term(m, [&](auto term) { term.prepare_system(m, h * h, ws.elements); });
+    prepare_tangent(m, s, ws, h * h);
     s.counters.cg_iterations += solve_system();
+    if (ws.system.indefinite && ws.elements.tangent) {
+      // CG met a direction of non-positive curvature: the exact tangent is indefinite here (a
+      // strongly compressed element). This iteration solves with the Gauss-Newton blocks.
+      ws.elements.tangent = false;
+      ++s.counters.indefinite_tangents;
+      s.counters.cg_iterations += solve_system();
+    }
     ++s.counters.newton_iterations;
 
     // Line search: never make a spring shorter than its hard-stop length (unless it was already

@@ -87,7 +87,11 @@ struct SolverOptions {
   double body_rate_hz = 0;  // Hz
   double body_reach = 0;    // m, the local model's region beyond the probe radius (0: half of it)
   bool exact_compliance = true;  // multi-rate: W from the tetrahedra's exact element Hessians
-  double mass_damping = 0;       // 1/s: Rayleigh mass-proportional damping on all nodes
+  // Implicit Euler: Newton's matrix takes the tetrahedra's element terms with their exact
+  // Hessians (prepare_tet_tangents, projected where indefinite), not the Gauss-Newton blocks
+  // (volume g g^T, the shear term's Laplacian); hexahedra keep the Gauss-Newton blocks.
+  bool exact_tangent = false;
+  double mass_damping = 0;  // 1/s: Rayleigh mass-proportional damping on all nodes
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
   double min_length_fraction = 0.05;                  // hard stop: no spring shorter than this x l0
   bool hard_stop = true;                              // off only to show what happens without it
@@ -305,7 +309,8 @@ struct Counters {
   std::uint64_t newton_iterations = 0;  // total, implicit only
   std::uint64_t factorizations = 0;     // kFactorCG: factors taken into use
   std::uint64_t factor_failures = 0;    // kFactorCG: factorisations refused (not positive definite)
-  std::uint64_t awake_nodes = 0;        // active region: nodes integrated in the last tick
+  std::uint64_t indefinite_tangents = 0;  // Newton iterations whose exact tangent CG refused
+  std::uint64_t awake_nodes = 0;          // active region: nodes integrated in the last tick
   std::array<std::uint64_t, kNumStages> stage_ns{};  // ns spent in each stage, in all (steady
                                                      // clock; diagnostic, not part of replay)
 };

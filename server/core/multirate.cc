@@ -145,7 +145,11 @@ LocalModel::LocalModel(int cap)
       pivot(4 * static_cast<size_t>(cap), 0),
       coupled_count(cap, 0),
       coupled_node(static_cast<size_t>(kMaxCoupled) * cap, -1),
-      coupled(static_cast<size_t>(kMaxCoupled) * cap, Mat3::Zero()) {}
+      coupled(static_cast<size_t>(kMaxCoupled) * cap, Mat3::Zero()),
+      held_count(cap, 0),
+      held_node(static_cast<size_t>(kMaxCoupled) * cap, -1),
+      held(static_cast<size_t>(kMaxCoupled) * cap, Mat3::Zero()),
+      hb(cap, Vec3::Zero()) {}
 
 SurfaceScratch::SurfaceScratch(const Model& m)
     : candidates(m.probes.size(), ContactCandidates(m)),
@@ -158,8 +162,15 @@ LocalModelBuilder::LocalModelBuilder(const Model& m)
     : factor_(std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal)),
       held_(m.probes.size(), std::vector<Mat3>(m.num_nodes(), Mat3::Zero())),
       held_next_(held_),
+      held_pairs_(m.probes.size()),
+      region_of_(m.num_nodes(), -1),
       layer_force_(m.num_nodes(), Vec3::Zero()),
       regions_(m.probes.size()) {
+  for (HeldPairs& h : held_pairs_) {
+    h.tris.assign(m.surface.size(), -1);
+    h.pair.assign(6 * m.surface.size(), Mat3::Zero());
+  }
+  held_pairs_next_ = held_pairs_;
   if (m.options.exact_compliance && (m.bulk_modulus > 0 || m.shear_modulus > 0) &&
       !m.tetrahedra.empty()) {
     exact_ = std::make_unique<SystemFactor>(m, SystemFactor::Kind::kSupernodal);
@@ -190,10 +201,19 @@ bool LocalModelBuilder::begin_refactor(const Model& m, State& s, Workspace& ws) 
   for (size_t k = 0; k < m.probes.size(); ++k) {  // what the contact stage put in the system
     const ProbeState& p = s.probes[k];
     std::vector<Mat3>& held = held_next_[k];
-    if (m.probes[k].contact == ContactModel::kSurface) {  // the layer's lumped blocks
+    if (m.probes[k].contact == ContactModel::kSurface) {  // the layer's faces' pair blocks
       std::fill(held.begin(), held.end(), Mat3::Zero());
-      layer_forces(m, static_cast<int>(k), p, s.x, ws.contact.candidates[k].triangles, nullptr,
-                   held.data());
+      HeldPairs& hp = held_pairs_next_[k];
+      hp.num = 0;
+      for (int t = 0; t < ws.contact.num_pairs; ++t) {
+        if (ws.contact.pair_probe[t] != static_cast<int>(k)) continue;
+        const Mat3* K = ws.contact.pair.data() + 6 * t;
+        const auto& tri = m.surface[ws.contact.pair_tris[t]];
+        for (int a = 0; a < 3; ++a) held[tri[a]] += K[a];
+        hp.tris[hp.num] = ws.contact.pair_tris[t];
+        std::copy(K, K + 6, hp.pair.begin() + 6 * hp.num);
+        ++hp.num;
+      }
       continue;
     }
     const double R = probe_radius(m, static_cast<int>(k), p), kc = m.probes[k].stiffness;
@@ -226,6 +246,7 @@ int LocalModelBuilder::finish_refactor(const Model& m, Workspace& ws) {
   }
   generation_ = ++factorizations_;
   std::swap(held_, held_next_);
+  std::swap(held_pairs_, held_pairs_next_);
   std::swap(exact_, exact_next_);
   exact_ok_ = exact_next_ok_;
   // The fresh factor is the best preconditioner the body's next step can have (kFactorCG): hand
@@ -280,6 +301,44 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
                       ? f
                       : Vec3::Zero();
     lm->b0[a] = held_[k][i];
+    lm->held_count[a] = 0;
+  }
+  if (surface) {  // B0's face couplings within the region (dx is zero outside it)
+    for (int a = 0; a < num; ++a) region_of_[lm->nodes[a]] = a;
+    auto find = [&](int row, int col) {  // the entry of col in row's list, or where it goes
+      const int base = row * LocalModel::kMaxCoupled;
+      for (int e = 0; e < lm->held_count[row]; ++e)
+        if (lm->held_node[base + e] == col) return e;
+      return lm->held_count[row] < LocalModel::kMaxCoupled ? lm->held_count[row] : -1;
+    };
+    auto add = [&](int row, int e, int col, const Mat3& K) {
+      const int base = row * LocalModel::kMaxCoupled;
+      if (e == lm->held_count[row]) {
+        lm->held_node[base + e] = col;
+        lm->held[base + e].setZero();
+        ++lm->held_count[row];
+      }
+      lm->held[base + e] += K;
+    };
+    const HeldPairs& hp = held_pairs_[k];
+    constexpr int kA[3] = {0, 0, 1}, kB[3] = {1, 2, 2};
+    for (int t = 0; t < hp.num; ++t) {
+      const auto& tri = m.surface[hp.tris[t]];
+      for (int j = 0; j < 3; ++j) {
+        const int ra = region_of_[tri[kA[j]]], rb = region_of_[tri[kB[j]]];
+        const Mat3& K = hp.pair[6 * t + 3 + j];
+        if (ra < 0 || rb < 0 || K.squaredNorm() == 0) continue;
+        const int eab = find(ra, rb), eba = find(rb, ra);
+        if (eab < 0 || eba < 0) {  // no room (a node on more faces than a surface has): lumped
+          lm->b0[ra] += K;
+          lm->b0[rb] += K;
+          continue;
+        }
+        add(ra, eab, rb, K);
+        add(rb, eba, ra, K);
+      }
+    }
+    for (int a = 0; a < num; ++a) region_of_[lm->nodes[a]] = -1;
   }
   // W_RR = h^2 A^-1 restricted to the region: the region's unit vectors solved at once (their
   // solves on a fixed axis give zero), unless the same region has them from the same factor.
@@ -361,6 +420,7 @@ void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, con
   for (int a = 0; a < num; ++a) {
     lm->f0[a].setZero();
     lm->b0[a].setZero();
+    lm->held_count[a] = 0;
   }
   for (int r = 0; r < 3 * num; ++r)
     for (int c = 0; c < 3 * num; ++c) {
@@ -542,6 +602,13 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // active nodes carry a nonzero bracket); returns |R|_inf.
   auto residual = [&]() {
     forces();
+    for (int a = 0; a < num; ++a) {  // B0 dx
+      Vec3 v = lm.b0[a] * lm.dx[a];
+      const int base = a * LocalModel::kMaxCoupled;
+      for (int e = 0; e < lm.held_count[a]; ++e)
+        v += lm.held[base + e] * lm.dx[lm.held_node[base + e]];
+      lm.hb[a] = v;
+    }
     na = 0;
     for (int a = 0; a < num; ++a)
       if (lm.f[a].squaredNorm() > 0 || lm.dfdc[a].squaredNorm() > 0 || lm.f0[a].squaredNorm() > 0 ||
@@ -552,7 +619,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       double s = 0;
       for (int t = 0; t < na; ++t) {
         const int b = act[t];
-        const Vec3 q = lm.f[b] - lm.f0[b] + lm.b0[b] * lm.dx[b];
+        const Vec3 q = lm.f[b] - lm.f0[b] + lm.hb[b];
         const double* wr = &lm.w[row * ld + 3 * b];
         s += wr[0] * q[0] + wr[1] * q[1] + wr[2] * q[2];
       }
@@ -566,13 +633,19 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   auto wq = [&](int row, int t, int cb) {
     const int b = act[t];
     const double* wr = &lm.w[row * ld + 3 * b];
+    const int base = b * LocalModel::kMaxCoupled;
+    double s = 0;
+    for (int e = 0; e < lm.held_count[b]; ++e) {  // B0's face couplings (symmetric blocks)
+      const double* we = &lm.w[row * ld + 3 * lm.held_node[base + e]];
+      const Mat3& K = lm.held[base + e];
+      s += we[0] * K(0, cb) + we[1] * K(1, cb) + we[2] * K(2, cb);
+    }
     if (!layer) {
       const Mat3 q = lm.b0[b] + lm.dfdc[b];
-      return wr[0] * q(0, cb) + wr[1] * q(1, cb) + wr[2] * q(2, cb);
+      return s + wr[0] * q(0, cb) + wr[1] * q(1, cb) + wr[2] * q(2, cb);
     }
     const Mat3& q0 = lm.b0[b];
-    double s = wr[0] * q0(0, cb) + wr[1] * q0(1, cb) + wr[2] * q0(2, cb);
-    const int base = b * LocalModel::kMaxCoupled;
+    s += wr[0] * q0(0, cb) + wr[1] * q0(1, cb) + wr[2] * q0(2, cb);
     for (int e = 0; e < lm.coupled_count[b]; ++e) {
       const double* we = &lm.w[row * ld + 3 * lm.coupled_node[base + e]];
       const Mat3& K = lm.coupled[base + e];
@@ -596,6 +669,9 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     for (int q = 0; q < na; ++q) {
       const int b = act[q];
       const Vec3 db(dA[3 * q], dA[3 * q + 1], dA[3 * q + 2]);
+      const int hbase = b * LocalModel::kMaxCoupled;
+      for (int e = 0; e < lm.held_count[b]; ++e)
+        lm.step[lm.held_node[hbase + e]] += lm.held[hbase + e] * db;
       if (!layer) {
         lm.step[b] += (lm.b0[b] + lm.dfdc[b]) * db;
         continue;
@@ -732,7 +808,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       }
       for (int q = 0; q < na; ++q) {
         const int a = act[q];
-        e += lm.f0[a].dot(lm.dx[a]) - 0.5 * lm.dx[a].dot(lm.b0[a] * lm.dx[a]);
+        e += lm.f0[a].dot(lm.dx[a]) - 0.5 * lm.dx[a].dot(lm.hb[a]);
       }
       return e;
     };
@@ -795,7 +871,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       for (int row = 0; row < n3; ++row) slope += lm.wdx[row] * lm.rhs[row];
       for (int q = 0; q < na; ++q) {
         const int a = act[q];
-        slope += (lm.f0[a] - lm.f[a] - lm.b0[a] * lm.dx[a]).dot(lm.step[a]);
+        slope += (lm.f0[a] - lm.f[a] - lm.hb[a]).dot(lm.step[a]);
       }
       const Vec3 p_last = probe->proxy;
       const double pi0 = pi, mer0 = mer;

@@ -64,7 +64,8 @@ struct LocalModel {
   Vec3 center0 = Vec3::Zero();  // m, the probe where the body step ended
   std::vector<int> nodes;       // (capacity) the region
   std::vector<Vec3> x0, f0;     // (capacity) m, N: positions and probe forces at the body state
-  std::vector<Mat3> b0;         // (capacity) N/m: the contact Jacobian the system held
+  std::vector<Mat3> b0;         // (capacity) N/m: the contact Jacobian the system held (node
+                                // blocks; a surface layer's face couplings in held_*)
   std::vector<double> w;        // (9 capacity^2) m/N: W_RR, row-major 3 capacity x 3 capacity
   std::vector<double> winv;     // (9 capacity^2) N/m: W_RR^-1 on the free axes (0 on fixed ones)
   // Haptic state and scratch (1 kHz thread). dx: the region's displacements of the last answer,
@@ -80,7 +81,13 @@ struct LocalModel {
   static constexpr int kMaxCoupled = 24;
   std::vector<int> coupled_count, coupled_node;  // (capacity), (kMaxCoupled capacity)
   std::vector<Mat3> coupled;                     // (kMaxCoupled capacity)
-  bool fresh = false;                            // dx was reset (a new region or body state)
+  // Surface contact: B0's couplings between the region's nodes (the layer's pair blocks the
+  // system held, off the diagonal), node a's entries (kMaxCoupled at most) the nodes b with
+  // B0_ab != 0 and B0_ab; and hb = B0 dx at the last residual (scratch).
+  std::vector<int> held_count, held_node;  // (capacity), (kMaxCoupled capacity)
+  std::vector<Mat3> held;                  // (kMaxCoupled capacity)
+  std::vector<Vec3> hb;                    // (capacity) N
+  bool fresh = false;                      // dx was reset (a new region or body state)
   // The base state's free motion: the region's displacement over one body step from the
   // momentum the body carries with no force changed, A^-1 h M v (build()); the answers move the
   // base along it in proportion to the time since the hand-over (haptic_contact).
@@ -164,9 +171,18 @@ class LocalModelBuilder {
   std::vector<std::pair<double, int>> near_;
   std::vector<std::vector<Mat3>> held_;       // (probes x nodes) N/m: B0 of the factored system
   std::vector<std::vector<Mat3>> held_next_;  // the pending factorisation's
-  std::vector<Vec3> layer_force_;             // (nodes) N, surface contact's f0
-  std::vector<Region> regions_;               // (probes)
-  std::uint64_t generation_ = 0;              // W's key: 0 without a usable factor
+  // A surface probe's B0 beyond its node blocks (held_ holds their diagonal K_aa): the touched
+  // faces' pair blocks as the system held them (ContactScratch::pair), num of them in use.
+  struct HeldPairs {
+    std::vector<int> tris;   // (surface triangles)
+    std::vector<Mat3> pair;  // (6 surface triangles) N/m
+    int num = 0;
+  };
+  std::vector<HeldPairs> held_pairs_, held_pairs_next_;  // (probes)
+  std::vector<int> region_of_;                           // (nodes) index in build()'s region, -1
+  std::vector<Vec3> layer_force_;                        // (nodes) N, surface contact's f0
+  std::vector<Region> regions_;                          // (probes)
+  std::uint64_t generation_ = 0;                         // W's key: 0 without a usable factor
   std::uint64_t factorizations_ = 0, failures_ = 0, solves_ = 0;
 };
 

@@ -69,6 +69,15 @@ SystemFactor::SystemFactor(const Model& m, Kind kind)
       for (int b = 0; b < N; ++b)
         element_blocks_.push_back(nodes[a] <= nodes[b] ? block(nodes[a], nodes[b]) : -1);
   });
+  // Each surface triangle's corner pairs (0, 1), (0, 2), (1, 2): the surface layers' pair blocks
+  // (ContactScratch::pair); -1 where the pair is not in the mesh graph (its block is then lumped
+  // onto the two diagonals).
+  for (const auto& tri : m.surface)
+    for (auto [a, b] : {std::pair{0, 1}, std::pair{0, 2}, std::pair{1, 2}}) {
+      const int i = std::min(tri[a], tri[b]), j = std::max(tri[a], tri[b]);
+      const int id = block(i, j);
+      surface_blocks_.push_back(id < start[j + 1] && rows[id] == i ? id : -1);
+    }
   free_.resize(3 * static_cast<size_t>(nn));
   for (int i = 0; i < nn; ++i)
     for (int c = 0; c < 3; ++c) free_[c * nn + i] = m.free_axes[i][c];
@@ -149,6 +158,27 @@ void SystemFactor::assemble(const Model& m, const Workspace& ws,
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) d[3 * r + c] += b(r, c);
   }
+  for (int t = 0; t < ws.contact.num_pairs; ++t) {  // the surface layers' faces
+    const int tri = ws.contact.pair_tris[t];
+    const auto& nodes = m.surface[tri];
+    const Mat3* K = ws.contact.pair.data() + 6 * t;
+    auto add = [&](int id, const Mat3& b) {
+      double* d = bv + 9 * id;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) d[3 * r + c] += ws.system.h2 * b(r, c);
+    };
+    for (int a = 0; a < 3; ++a) add(diag_block_[nodes[a]], K[a]);
+    constexpr int kA[3] = {0, 0, 1}, kB[3] = {1, 2, 2};
+    for (int j = 0; j < 3; ++j) {
+      const int id = surface_blocks_[3 * tri + j];
+      if (id >= 0) {
+        add(id, K[3 + j]);
+      } else {
+        add(diag_block_[nodes[kA[j]]], K[3 + j]);
+        add(diag_block_[nodes[kB[j]]], K[3 + j]);
+      }
+    }
+  }
   const double* alpha = ws.system.alpha.data();
   const double* beta = ws.system.beta.data();
   for (int k = 0; k < ns; ++k) {
@@ -169,16 +199,22 @@ void SystemFactor::assemble(const Model& m, const Workspace& ws,
   const double h2 = ws.system.h2;
   const int* eb = element_blocks_.data();
   const bool exact_terms = exact_at && (m.bulk_modulus > 0 || m.shear_modulus > 0);
+  // The Newton iteration's exact tangent, unless the last factorisation of one failed.
+  const bool tangent = !exact_terms && ws.elements.tangent && !gauss_newton_next_;
+  assembled_tangent_ = tangent;
   double He[12 * 12];
   for_each_element(m, [&](auto n, int e, const auto& nodes) {
     constexpr int N = decltype(n)::value;
     // Tetrahedra only: a hexahedron's eight Gauss points differenced cost about 40 ms per
     // assembly on the 600-hexahedron phantom (its factorisation: 7 ms).
-    const bool exact = N == 4 && exact_terms;
-    if (exact) {
+    const bool exact = N == 4 && (exact_terms || tangent);
+    if (exact && exact_terms) {
       Vec3 xe[N];
       for (int a = 0; a < N; ++a) xe[a] = (*exact_at)[nodes[a]];
-      if constexpr (N == 4) element_term_hessian<4>(m, e, xe, He);
+      if constexpr (N == 4) tet_term_hessian(m, e, xe, He);
+    } else if (exact) {  // h^2 already in
+      expand_tet_tangent(ws.elements.tet_tangent.data() + 45 * static_cast<size_t>(e), He);
+      for (double& v : He) v /= h2;
     }
     for (int a = 0; a < N; ++a)
       for (int b = 0; b < N; ++b) {
@@ -217,6 +253,9 @@ bool SystemFactor::factorize() {
   cholmod_common& cc = c_->c;
   factored_ =
       cholmod_factorize(c_->A, c_->L, &cc) && cc.status == CHOLMOD_OK && c_->L->minor == c_->L->n;
+  // An exact tangent that is not positive definite: the next assembly takes the Gauss-Newton
+  // blocks; after a Gauss-Newton factor, the exact tangent again.
+  gauss_newton_next_ = !factored_ && assembled_tangent_;
   // solve() reads a simplicial LDL^T factor in place (the analysis asked for one), or solves
   // with a supernodal one through CHOLMOD.
   factored_ = factored_ && (c_->L->is_super || !c_->L->is_ll);

@@ -47,12 +47,13 @@ class SystemFactor {
   SystemFactor& operator=(const SystemFactor&) = delete;
 
   // The values of A_f at the system ws.system, ws.elements and ws.contact describe (after the
-  // Newton iteration's coefficients and prepare_system). With exact_at (the positions the system
-  // was prepared at), the tetrahedra's element-term blocks are their exact Hessians there
-  // (element_term_hessian) instead of the Gauss-Newton ones: the tangent a converged step
-  // follows, for the multi-rate body's local compliance (core/multirate.h); it may be indefinite.
-  // Hexahedra keep the Gauss-Newton blocks (differencing their Gauss points costs several
-  // factorisations).
+  // Newton iteration's coefficients and prepare_system): the tetrahedra's exact tangent when the
+  // iteration took it (ElementScratch::tangent; after a factorisation of it failed, the next
+  // assembly takes the Gauss-Newton blocks), the surface layers' faces with their pair blocks.
+  // With exact_at (the positions the system was prepared at), the tetrahedra's element-term
+  // blocks are their exact Hessians there (tet_term_hessian) whatever the iteration took: the
+  // tangent a converged step follows, for the multi-rate body's local compliance
+  // (core/multirate.h); it may be indefinite. Hexahedra keep the Gauss-Newton blocks.
   void assemble(const Model& m, const Workspace& ws, const std::vector<Vec3>* exact_at = nullptr);
   // Numeric factorisation of the assembled values; false when A_f is not positive definite
   // (the factor is then unusable).
@@ -87,6 +88,9 @@ class SystemFactor {
   std::vector<int> element_blocks_;  // per element (tetrahedra, then hexahedra) N x N block
                                      // ids of its node pairs (a, b), -1 where node a > node b
   std::vector<int> diag_block_;      // (num_nodes)
+  std::vector<int> surface_blocks_;  // (3 surface triangles) corner pairs 01 02 12, -1: none
+  bool assembled_tangent_ = false;   // the last assembly took the exact tetrahedron tangent
+  bool gauss_newton_next_ = false;   // ... and its factorisation failed: the next one does not
   std::vector<double> blocks_;       // (9 num_blocks) row-major 3 x 3 values
   std::vector<int> src_;             // (nonzeros) the block entry of each CSC entry, -1: a fixed
                                      // axis's unit diagonal, -2: zero (a fixed axis's coupling)

@@ -174,6 +174,10 @@ struct ElementScratch {
   // Per element (tetrahedra 16 entries, then hexahedra 64): the implicit system's shear
   // Laplacian h^2 sum_q c_q (b_qa . b_qb), assembled once per Newton iteration.
   std::vector<double> element_lap;
+  // Tetrahedra with the exact tangent (prepare_tet_tangents): 45 entries each, and whether the
+  // implicit system uses them this Newton iteration instead of the terms' Gauss-Newton blocks.
+  std::vector<double> tet_tangent;
+  bool tangent = false;
 };
 
 // The contact stage's scratch (contact_stage.cc, core/contact.h). Planes: normal * sqrt(h^2 k_p)
@@ -190,6 +194,15 @@ struct ContactScratch {
   std::vector<std::uint8_t> in_contact;  // (num_nodes)
   int num_nodes = 0;
   std::vector<ContactCandidates> candidates;  // (probes) surface triangles near each proxy
+  // The implicit system's surface-probe layers, triangle by triangle: the touched triangles'
+  // pair blocks K_ab = sum w l_a l_b p' u u^T (N/m, the pressure term of tool_contact's node_pair,
+  // six per triangle: 00 11 22 01 02 12), instead of their row sums in `block`, so that Newton's
+  // matrix couples the nodes of a face the way the layer does. The first num_pairs entries of
+  // pair_tris (surface triangle indices) and 6 num_pairs of pair are in use.
+  std::vector<int> pair_tris;   // (probes x surface triangles)
+  std::vector<int> pair_probe;  // (the same) the probe of each
+  std::vector<Mat3> pair;       // (6 x that)
+  int num_pairs = 0;
 };
 
 // The implicit integrator's system and solver scratch (implicit.cc). Node vectors are
@@ -205,6 +218,7 @@ struct SystemScratch {
   std::vector<double> diag, pre;             // (6 num_nodes) diagonal blocks, inverses
   std::vector<double> rhs, r, z, p, ap, dx;  // (3 num_nodes) PCG
   std::vector<double> chunk;                 // (6 kChunkSprings) a chunk's products/blocks
+  bool indefinite = false;                   // the last CG met p^T A p <= 0
 };
 
 // The guard's last good state (step.cc): what a rollback returns to.

@@ -106,6 +106,8 @@ void BodyWorker::run() {
     factorizations_.store(builder_.factorizations(), std::memory_order_relaxed);
     region_solves_.store(builder_.region_solves(), std::memory_order_relaxed);
     rollbacks_.store(body_state_.counters.rollbacks, std::memory_order_relaxed);
+    newton_.store(body_state_.counters.newton_iterations, std::memory_order_relaxed);
+    cg_.store(body_state_.counters.cg_iterations, std::memory_order_relaxed);
     body_ns_.store(
         std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0)
             .count(),

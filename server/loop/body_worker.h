@@ -66,6 +66,9 @@ class BodyWorker {
   std::uint64_t factorizations() const { return factorizations_.load(std::memory_order_relaxed); }
   std::uint64_t region_solves() const { return region_solves_.load(std::memory_order_relaxed); }
   std::uint64_t rollbacks() const { return rollbacks_.load(std::memory_order_relaxed); }
+  // The body's Newton and CG iterations so far (relaxed reads; for benchmarks).
+  std::uint64_t newton_iterations() const { return newton_.load(std::memory_order_relaxed); }
+  std::uint64_t cg_iterations() const { return cg_.load(std::memory_order_relaxed); }
   // The body thread's last step plus local models, ns (relaxed; for statistics).
   std::int64_t last_body_ns() const { return body_ns_.load(std::memory_order_relaxed); }
   BodyStats stats() const;  // all of the above, for the loop's statistics
@@ -107,6 +110,7 @@ class BodyWorker {
   std::atomic<int> state_{kIdle};
   std::atomic<std::int64_t> body_ns_{0};
   std::atomic<std::uint64_t> factorizations_{0}, region_solves_{0}, rollbacks_{0};
+  std::atomic<std::uint64_t> newton_{0}, cg_{0};
   int since_ = 0;
   std::uint64_t body_steps_ = 0, late_ticks_ = 0, frozen_ = 0;
   int evaluations_ = 0;

@@ -49,8 +49,10 @@ using testing_meshes::Tetrahedralised;
 
 // A 20 x 20 x 15 mm block of the EF30 card with volume, spread (hexahedra) and shear terms on a
 // frictionless base, pressed by a probe (node contact) and by a side plate; hexahedra or
-// tetrahedra. kFactorCG unless `jacobi`.
-Model Block(bool tets, bool jacobi = false) {
+// tetrahedra. kFactorCG unless `jacobi`; `contact` the probe's; `exact`: Newton's matrix with the
+// tetrahedra's exact tangent.
+Model Block(bool tets, bool jacobi = false, ContactModel contact = ContactModel::kNodes,
+            bool exact = false) {
   BodySpec b = testing_meshes::Ef30Block(tets, 1e-3);
   FixedSelector base;
   base.kind = FixedSelector::Kind::kPlane;
@@ -66,8 +68,9 @@ Model Block(bool tets, bool jacobi = false) {
   plate.normal = Vec3(-1, 0, 0);
   plate.offset = -0.0196;
   b.planes = {plate};
-  b.probes.push_back(ProbeSpec{0.006, 0, ContactModel::kNodes});
+  b.probes.push_back(ProbeSpec{0.006, 0, contact});
   b.options.integrator = Integrator::kImplicitEuler;
+  b.options.exact_tangent = exact;
   b.options.linear_solver = jacobi ? LinearSolver::kBlockJacobiCG : LinearSolver::kFactorCG;
   b.options.mass_damping = 20;
   Model m;
@@ -149,6 +152,33 @@ TEST_P(SparseSystemTest, AssembledMatrixTimesAVectorIsTheMatrixFreeProduct) {
     EXPECT_LT(MaxAbs(d), 1e-12 * MaxAbs(y)) << "seed " << seed;
   }
   EXPECT_GT(ws.factor->current->factor_nonzeros(), ws.factor->current->nonzeros());
+}
+
+// The same with the surface tool pressing (the layer's faces as pair blocks) and Newton's matrix
+// on the tetrahedra's exact tangent: the assembled matrix is the matrix-free product, and it is
+// symmetric positive definite (a dense Cholesky factorisation of it succeeds).
+TEST_P(SparseSystemTest, AssembledSurfaceLayerAndExactTangentAreTheMatrixFreeProduct) {
+  const Model m = Block(GetParam(), false, ContactModel::kSurface, true);
+  State s = Pressed(m);
+  Workspace ws(m);
+  step(m, s, ws);  // the proxy stage lists the faces near the tool in this workspace
+  const int n3 = 3 * m.num_nodes();
+  for (int seed : {1, 2}) {
+    const std::vector<double> p = Random(m, seed);
+    std::vector<double> y(n3), ya(n3);
+    detail::system_product(m, s, ws, m.options.dt, p.data(), y.data());
+    ASSERT_GT(ws.contact.num_pairs, 0);          // faces under the tool
+    EXPECT_EQ(ws.elements.tangent, GetParam());  // tetrahedra: the exact tangent
+    ws.factor->current->assemble(m, ws);
+    ws.factor->current->multiply(p.data(), ya.data());
+    std::vector<double> d(n3);
+    for (int k = 0; k < n3; ++k) d[k] = ya[k] - y[k];
+    EXPECT_LT(MaxAbs(d), 1e-12 * MaxAbs(y)) << "seed " << seed;
+  }
+  std::vector<int> free;
+  const Eigen::MatrixXd A = DenseSystem(m, s, ws, &free);
+  EXPECT_LT((A - A.transpose()).cwiseAbs().maxCoeff(), 1e-12 * A.cwiseAbs().maxCoeff());
+  EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(A).info(), Eigen::Success);
 }
 
 TEST_P(SparseSystemTest, FactorSolveInvertsTheMatrixFreeSystemLikeADenseSolve) {
@@ -325,13 +355,16 @@ TEST(SparseFactorWorkerTest, StepAllocatesNothingWhileAWorkerFactors) {
 }
 
 // newton_tolerance turns the Newton budget into a cap: the step stops once an update moves no
-// node farther than the tolerance, and lands where the whole budget lands, within it.
+// node farther than the tolerance, and lands where the whole budget lands, within it. With the
+// Gauss-Newton blocks one iteration is measurably short of it; with the exact tangent
+// (tetrahedra's element terms) one iteration lands closer than with them.
 TEST_P(SparseSystemTest, NewtonToleranceStopsAtTheConvergedStep) {
   const Model base = Block(GetParam());
   const State pressed = Pressed(base);
   for (const LinearSolver solver : {LinearSolver::kFactorCG, LinearSolver::kBlockJacobiCG}) {
-    auto step_with = [&](int newton, double tol, std::uint64_t* iterations) {
+    auto step_with = [&](int newton, double tol, std::uint64_t* iterations, bool exact = true) {
       Model m = base;
+      m.options.exact_tangent = exact;
       m.options.linear_solver = solver;
       m.options.newton_iterations = newton;
       m.options.newton_tolerance = tol;
@@ -348,24 +381,28 @@ TEST_P(SparseSystemTest, NewtonToleranceStopsAtTheConvergedStep) {
     std::uint64_t n_full = 0, n_tol = 0, n_one = 0;
     const State full = step_with(10, 0, &n_full);
     const State early = step_with(10, 1e-8, &n_tol);
-    const State one = step_with(1, 0, &n_one);
+    const State one = step_with(1, 0, &n_one, false);
+    std::uint64_t n_one_exact = 0;
+    const State one_exact = step_with(1, 0, &n_one_exact, true);
     EXPECT_EQ(n_full, 10u);
     EXPECT_EQ(n_one, 1u);
     EXPECT_GE(n_tol, 2u);
     EXPECT_LT(n_tol, 10u);
-    double d_early = 0, d_one = 0;
+    double d_early = 0, d_one = 0, d_one_exact = 0;
     for (int i = 0; i < base.num_nodes(); ++i) {
       d_early = std::max(d_early, (early.x[i] - full.x[i]).norm());
       d_one = std::max(d_one, (one.x[i] - full.x[i]).norm());
+      d_one_exact = std::max(d_one_exact, (one_exact.x[i] - full.x[i]).norm());
     }
     const bool factor = solver == LinearSolver::kFactorCG;
     std::printf(
         "%s: Newton iterations %llu of 10; largest node distance to the full budget %.3g m "
-        "(one iteration: %.3g m)\n",
+        "(one iteration: %.3g m Gauss-Newton, %.3g m exact tangent)\n",
         factor ? "factor CG" : "block-Jacobi CG", static_cast<unsigned long long>(n_tol), d_early,
-        d_one);
+        d_one, d_one_exact);
     EXPECT_LT(d_early, 1e-8) << factor;
     EXPECT_GT(d_one, 10 * 1e-8) << factor;  // the comparison can tell an unconverged step
+    if (GetParam()) EXPECT_LT(d_one_exact, 0.1 * d_one) << factor;  // tetrahedra
   }
 }
 

@@ -456,6 +456,8 @@ void ExpectSameScene(const SceneFile& a, const SceneFile& b, const std::string& 
   EXPECT_EQ(o.body_rate_hz, u.body_rate_hz) << where;
   EXPECT_EQ(o.body_reach, u.body_reach) << where;
   if (o.body_rate_hz > 0) EXPECT_EQ(o.exact_compliance, u.exact_compliance) << where;
+  if (o.integrator == Integrator::kImplicitEuler)
+    EXPECT_EQ(o.exact_tangent, u.exact_tangent) << where;
   EXPECT_EQ(o.mass_damping, u.mass_damping) << where;
   EXPECT_EQ(o.gravity, u.gravity) << where;
   EXPECT_EQ(o.min_length_fraction, u.min_length_fraction) << where;
