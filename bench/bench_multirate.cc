@@ -22,6 +22,7 @@
 // single-rate step; a larger N approaches the quasi-static response, time running N times over);
 // --warmup S: the served body ticks S seconds with the probe off the surface before the run (as a
 // server does before its first press), so that its first steps and factorisations are not in it.
+// BENCH_DROPOUTS=1: where the probe stood at each tick whose force is less than half the last one.
 // BENCH_REFERENCE=FILE: the per-tick reference's forces kept in FILE and read back by a later run
 // of the same body and path (served settings compared without solving the reference again).
 // --lift: after the press and its hold the probe goes straight back out at the press's speed
@@ -233,6 +234,16 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
     else
       while (worker.stepping()) std::this_thread::sleep_for(std::chrono::microseconds(50));
     force[t] = s.probes[0].force;
+    if (std::getenv("BENCH_DROPOUTS") && t > 0 && force[t].norm() < 0.5 * force[t - 1].norm()) {
+      const ProbeState& q = s.probes[0];  // a force that halves in one tick: where things stood
+      std::printf(
+          "drop at tick %d: %.4f -> %.4f N; body steps %llu (last hand-over %s); proxy - device "
+          "%.3g m, contacts %d, depth %.3g m, proxy placed %d\n",
+          t, force[t - 1].norm(), force[t].norm(),
+          static_cast<unsigned long long>(worker.body_steps()),
+          worker.body_steps() != last_steps ? "this tick" : "earlier", (q.proxy - q.center).norm(),
+          q.contacts, q.depth, static_cast<int>(q.proxy_placed));
+    }
     if (worker.body_steps() != last_steps) {  // a body step handed over: its step and models
       last_steps = worker.body_steps();
       body_ms.push_back(1e-6 * static_cast<double>(worker.last_body_ns()));
