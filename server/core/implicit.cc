@@ -290,6 +290,17 @@ void apply_system(const Model& m, Workspace& ws, const double* p, double* y) {
   for (int k = 0; k < 3 * nn; ++k) y[k] *= f[k];
 }
 
+// The symmetric block b added to node i's diagonal block in d (nn nodes, six component-major
+// entries 00 11 22 01 02 12).
+void add_diagonal_block(int i, int nn, const Mat3& b, double* d) {
+  d[i] += b(0, 0);
+  d[nn + i] += b(1, 1);
+  d[2 * nn + i] += b(2, 2);
+  d[3 * nn + i] += b(0, 1);
+  d[4 * nn + i] += b(0, 2);
+  d[5 * nn + i] += b(1, 2);
+}
+
 // The block-Jacobi preconditioner: inverse of every node's 3 x 3 diagonal block of A.
 void build_preconditioner(const Model& m, Workspace& ws) {
   const int nn = m.num_nodes();
@@ -302,35 +313,15 @@ void build_preconditioner(const Model& m, Workspace& ws) {
     }
   for (int q = 0; q < ws.contact.num_nodes; ++q) {
     const int i = ws.contact.nodes[q];
-    const Vec3& cn = ws.contact.n[i];
-    d[i] += cn.x() * cn.x();
-    d[nn + i] += cn.y() * cn.y();
-    d[2 * nn + i] += cn.z() * cn.z();
-    d[3 * nn + i] += cn.x() * cn.y();
-    d[4 * nn + i] += cn.x() * cn.z();
-    d[5 * nn + i] += cn.y() * cn.z();
+    add_node_block(i, nn, ws.contact.n[i], 1.0, d);
     const Mat3& B = ws.contact.block[i];  // a surface probe's layer (core/contact.h)
     if (B.squaredNorm() == 0) continue;
-    const Mat3 b = ws.system.h2 * B;
-    d[i] += b(0, 0);
-    d[nn + i] += b(1, 1);
-    d[2 * nn + i] += b(2, 2);
-    d[3 * nn + i] += b(0, 1);
-    d[4 * nn + i] += b(0, 2);
-    d[5 * nn + i] += b(1, 2);
+    add_diagonal_block(i, nn, ws.system.h2 * B, d);
   }
   for (int t = 0; t < ws.contact.num_pairs; ++t) {  // the surface layers' faces: K_aa
     const auto& tri = m.surface[ws.contact.pair_tris[t]];
-    for (int a = 0; a < 3; ++a) {
-      const Mat3 b = ws.system.h2 * ws.contact.pair[6 * t + a];
-      const int i = tri[a];
-      d[i] += b(0, 0);
-      d[nn + i] += b(1, 1);
-      d[2 * nn + i] += b(2, 2);
-      d[3 * nn + i] += b(0, 1);
-      d[4 * nn + i] += b(0, 2);
-      d[5 * nn + i] += b(1, 2);
-    }
+    for (int a = 0; a < 3; ++a)
+      add_diagonal_block(tri[a], nn, ws.system.h2 * ws.contact.pair[6 * t + a], d);
   }
   double* const b = ws.system.chunk.data();
   constexpr int kC = SpringLayout::kChunkSprings;
@@ -365,16 +356,10 @@ void build_preconditioner(const Model& m, Workspace& ws) {
       if (tangent) {
         double H[144];
         expand_tet_tangent(ws.elements.tet_tangent.data() + 45 * static_cast<size_t>(e), H);
-        for (int a = 0; a < 4; ++a) {
-          const double* B = H + 39 * a;  // block (a, a): row 3 a, column 3 a
-          const int i = nodes[a];
-          d[i] += B[0];
-          d[nn + i] += B[13];
-          d[2 * nn + i] += B[26];
-          d[3 * nn + i] += B[1];
-          d[4 * nn + i] += B[2];
-          d[5 * nn + i] += B[14];
-        }
+        using Block = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>, 0,
+                                 Eigen::OuterStride<12>>;
+        for (int a = 0; a < 4; ++a)  // block (a, a): row 3 a, column 3 a
+          add_diagonal_block(nodes[a], nn, Mat3(Block(H + 39 * a)), d);
         return;
       }
     for_each_term_reversed(m, [&](auto term) {

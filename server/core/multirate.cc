@@ -121,6 +121,30 @@ void layer_forces(const Model& m, int k, const ProbeState& p, const std::vector<
                tool, force, block, terms, nullptr, pair);
 }
 
+// The lists of 3 x 3 blocks per region node that LocalModel keeps (coupled, held): node `owner`'s
+// list (kMaxCoupled entries from owner * kMaxCoupled, count[owner] in use) holds the nodes it is
+// coupled with. The slot of `member` in it: its entry, or the next free one; -1 when full.
+int coupling_slot(const std::vector<int>& count, const std::vector<int>& node, int owner,
+                  int member) {
+  const int base = owner * LocalModel::kMaxCoupled;
+  for (int e = 0; e < count[owner]; ++e)
+    if (node[base + e] == member) return e;
+  return count[owner] < LocalModel::kMaxCoupled ? count[owner] : -1;
+}
+
+// Adds K to `member`'s block in `owner`'s list at `slot` (coupling_slot), appending it if new.
+void add_coupling(std::vector<int>& count, std::vector<int>& node, std::vector<Mat3>& blocks,
+                  int owner, int slot, int member, const Mat3& K) {
+  const int at = owner * LocalModel::kMaxCoupled + slot;
+  if (slot == count[owner]) {
+    node[at] = member;
+    blocks[at] = K;
+    ++count[owner];
+  } else {
+    blocks[at] += K;
+  }
+}
+
 }  // namespace
 
 LocalModel::LocalModel(int cap)
@@ -305,21 +329,6 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
   }
   if (surface) {  // B0's face couplings within the region (dx is zero outside it)
     for (int a = 0; a < num; ++a) region_of_[lm->nodes[a]] = a;
-    auto find = [&](int row, int col) {  // the entry of col in row's list, or where it goes
-      const int base = row * LocalModel::kMaxCoupled;
-      for (int e = 0; e < lm->held_count[row]; ++e)
-        if (lm->held_node[base + e] == col) return e;
-      return lm->held_count[row] < LocalModel::kMaxCoupled ? lm->held_count[row] : -1;
-    };
-    auto add = [&](int row, int e, int col, const Mat3& K) {
-      const int base = row * LocalModel::kMaxCoupled;
-      if (e == lm->held_count[row]) {
-        lm->held_node[base + e] = col;
-        lm->held[base + e].setZero();
-        ++lm->held_count[row];
-      }
-      lm->held[base + e] += K;
-    };
     const HeldPairs& hp = held_pairs_[k];
     constexpr int kA[3] = {0, 0, 1}, kB[3] = {1, 2, 2};
     for (int t = 0; t < hp.num; ++t) {
@@ -328,14 +337,15 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
         const int ra = region_of_[tri[kA[j]]], rb = region_of_[tri[kB[j]]];
         const Mat3& K = hp.pair[6 * t + 3 + j];
         if (ra < 0 || rb < 0 || K.squaredNorm() == 0) continue;
-        const int eab = find(ra, rb), eba = find(rb, ra);
+        const int eab = coupling_slot(lm->held_count, lm->held_node, ra, rb),
+                  eba = coupling_slot(lm->held_count, lm->held_node, rb, ra);
         if (eab < 0 || eba < 0) {  // no room (a node on more faces than a surface has): lumped
           lm->b0[ra] += K;
           lm->b0[rb] += K;
           continue;
         }
-        add(ra, eab, rb, K);
-        add(rb, eba, ra, K);
+        add_coupling(lm->held_count, lm->held_node, lm->held, ra, eab, rb, K);
+        add_coupling(lm->held_count, lm->held_node, lm->held, rb, eba, ra, K);
       }
     }
     for (int a = 0; a < num; ++a) region_of_[lm->nodes[a]] = -1;
@@ -547,12 +557,9 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
       // past a column's room, stays in the lumped diagonal instead: a slower Newton, same answer).
       constexpr int kPairs[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
       auto couple = [&](int row, int col, const Mat3& K) {
-        const int base = col * LocalModel::kMaxCoupled;
-        for (int e = 0; e < lm.coupled_count[col]; ++e)
-          if (lm.coupled_node[base + e] == row) return lm.coupled[base + e] += K, true;
-        if (lm.coupled_count[col] == LocalModel::kMaxCoupled) return false;
-        lm.coupled_node[base + lm.coupled_count[col]] = row;
-        lm.coupled[base + lm.coupled_count[col]++] = K;
+        const int slot = coupling_slot(lm.coupled_count, lm.coupled_node, col, row);
+        if (slot < 0) return false;
+        add_coupling(lm.coupled_count, lm.coupled_node, lm.coupled, col, slot, row, K);
         return true;
       };
       bool complete = true;

@@ -203,6 +203,8 @@ void SystemFactor::assemble(const Model& m, const Workspace& ws,
   const bool tangent = !exact_terms && ws.elements.tangent && !gauss_newton_next_;
   assembled_tangent_ = tangent;
   double He[12 * 12];
+  // He's scale: the exact Hessian as it is, the Newton iteration's tangent already times h^2.
+  const double he_scale = exact_terms ? h2 : 1.0;
   for_each_element(m, [&](auto n, int e, const auto& nodes) {
     constexpr int N = decltype(n)::value;
     // Tetrahedra only: a hexahedron's eight Gauss points differenced cost about 40 ms per
@@ -214,7 +216,6 @@ void SystemFactor::assemble(const Model& m, const Workspace& ws,
       if constexpr (N == 4) tet_term_hessian(m, e, xe, He);
     } else if (exact) {  // h^2 already in
       expand_tet_tangent(ws.elements.tet_tangent.data() + 45 * static_cast<size_t>(e), He);
-      for (double& v : He) v /= h2;
     }
     for (int a = 0; a < N; ++a)
       for (int b = 0; b < N; ++b) {
@@ -223,7 +224,7 @@ void SystemFactor::assemble(const Model& m, const Workspace& ws,
         double H[3][3] = {};
         if (exact) {
           for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c) H[r][c] = h2 * He[(3 * a + r) * 3 * N + 3 * b + c];
+            for (int c = 0; c < 3; ++c) H[r][c] = he_scale * He[(3 * a + r) * 3 * N + 3 * b + c];
         } else {
           for_each_term(m,
                         [&](auto term) { term.template block<N>(m, ws.elements, h2, e, a, b, H); });
