@@ -9,7 +9,7 @@
 //                             [--newton N] [--newton-tolerance M] [--cg-tolerance T]
 //                             [--refactor-every N] [--refactor-iterations N]
 //                             [--per-tick [--realtime] [--replies] [--lift] [--speed V]
-//                             [--ref-sweeps N] [--warmup SECONDS]]
+//                             [--ref-sweeps N] [--warmup SECONDS] [--latency TICKS]]
 //                             [--churn SECONDS]
 //                             [--surface | --nodes] SCENE
 // --surface, --nodes: the probe on surface contact or the node law whatever the scene says.
@@ -22,9 +22,12 @@
 // single-rate step; a larger N approaches the quasi-static response, time running N times over);
 // --warmup S: the served body ticks S seconds with the probe off the surface before the run (as a
 // server does before its first press), so that its first steps and factorisations are not in it.
+// --latency N: each body step handed over no sooner than N ticks after its kick-off (a waited run
+// with the body as late as a body thread that slow: real time's lateness, deterministic).
 // BENCH_DROPOUTS=1: where the probe stood at each tick whose force is less than half the last one.
 // BENCH_REFERENCE=FILE: the per-tick reference's forces kept in FILE and read back by a later run
-// of the same body and path (served settings compared without solving the reference again).
+// of the same body and path (served settings compared without solving the reference again);
+// BENCH_REFERENCE=none: no reference (the served run alone: its dropouts, times and counts).
 // --lift: after the press and its hold the probe goes straight back out at the press's speed
 // (instead of the slide), and the force at the same depths pressing and lifting is printed.
 // --churn: the soak's churning client (tools/soak_main.cc) without the wire, paced at 1 kHz:
@@ -109,7 +112,7 @@ void PrintByEvaluations(const std::vector<int>& evaluations, const std::vector<d
 // 1e-10): the per-tick force's RMS and largest relative error (over the ticks above a fifth of
 // the largest force).
 int PerTick(const Model& served, const Vec3& top, int up, double depth, bool realtime, bool replies,
-            bool lift, double speed, int sweeps, double warmup) {
+            bool lift, double speed, int sweeps, double warmup, int latency) {
   const int side = (up + 1) % 3;
   const double r = served.probes[0].radius;
   const double t_press = (depth + 1e-3) / speed, t_slide = t_press + 0.2;
@@ -152,7 +155,12 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
                23 * static_cast<int>(ref.probes[0].contact) + 29 * ref.options.mass_damping;
   for (size_t i = 0; i < served.rest.size(); ++i) key += (i % 97 + 1) * served.rest[i].sum();
   bool cached = false;
-  if (cache) {
+  const bool no_reference = cache && std::string(cache) == "none";
+  if (no_reference) {
+    std::fill(ref_force.begin(), ref_force.end(), Vec3::Zero());
+    cached = true;
+    std::printf("no reference: the served run alone\n");
+  } else if (cache) {
     if (FILE* f = std::fopen(cache, "rb")) {
       double k = 0;
       cached = std::fread(&k, sizeof k, 1, f) == 1 && k == key &&
@@ -181,7 +189,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
       if (ref.probes[0].contact == ContactModel::kNodes) probe_contact(ref, s.x, 0, path(t), r, &p);
       ref_force[t] = p.force;
     }
-    if (cache)
+    if (cache && !no_reference)
       if (FILE* f = std::fopen(cache, "wb")) {
         std::fwrite(&key, sizeof key, 1, f);
         std::fwrite(ref_force.data(), sizeof(Vec3), ticks, f);
@@ -202,6 +210,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   // the run, as a server is before its first client presses: the body's first steps (block-Jacobi
   // CG until the first factor, the first factorisations) are not in the run.
   const int warm = static_cast<int>(std::lround(warmup / served.options.dt));
+  worker.set_latency(latency);
   const auto warm_start = std::chrono::steady_clock::now();
   for (int t = 0; t < warm; ++t) {
     set_probe(s, 0, path(0));
@@ -212,8 +221,8 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
       while (worker.stepping()) std::this_thread::sleep_for(std::chrono::microseconds(50));
   }
   const std::uint64_t steps0 = worker.body_steps(), factors0 = worker.factorizations(),
-                      frozen0 = worker.frozen_answers(), newton0 = worker.newton_iterations(),
-                      cg0 = worker.cg_iterations();
+                      frozen0 = worker.frozen_answers(), fallbacks0 = worker.proxy_fallbacks(),
+                      newton0 = worker.newton_iterations(), cg0 = worker.cg_iterations();
   Timer t_tick;                 // the 1 kHz thread's tick (its contact solve), not the body's step
   std::vector<double> body_ms;  // wall time of each body step handed over, with its models
   std::uint64_t last_steps = steps0;
@@ -251,7 +260,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   }
   double fmax = 0, e2 = 0, f2 = 0, worst = 0;
   for (const Vec3& f : ref_force) fmax = std::max(fmax, f.norm());
-  for (int t = 0; t < ticks; ++t) {
+  for (int t = 0; t < ticks && fmax > 0; ++t) {
     if (ref_force[t].norm() < 0.2 * fmax) continue;
     const double e = (force[t] - ref_force[t]).norm();
     e2 += e * e;
@@ -280,7 +289,8 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   std::printf(
       "per tick, press %.1f mm / hold / %s (%d ticks): largest force %.4f N; "
       "served against converged every tick: RMS %.3f %%, largest %.3f %%; %llu body steps, "
-      "%llu factorisations, %llu estimated answers; converged step p50 %.1f ms; tick CPU p50 / "
+      "%llu factorisations, %llu estimated answers, %llu proxy fallbacks; converged step p50 %.1f "
+      "ms; tick CPU p50 / "
       "p99 / max %.0f / %.0f / %.0f us; body step wall p50 / p90 / max %.1f / %.1f / %.1f ms; "
       "Newton iterations per body step %.2f, CG iterations per Newton iteration %.1f\n",
       1e3 * depth, lift ? "lift" : "slide 5 mm / hold", ticks, fmax,
@@ -288,6 +298,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
       static_cast<unsigned long long>(worker.body_steps() - steps0),
       static_cast<unsigned long long>(worker.factorizations() - factors0),
       static_cast<unsigned long long>(worker.frozen_answers() - frozen0),
+      static_cast<unsigned long long>(worker.proxy_fallbacks() - fallbacks0),
       1e-3 * Percentile(t_ref.wall_us, 0.5), Percentile(t_tick.cpu_us, 0.5),
       Percentile(t_tick.cpu_us, 0.99), Percentile(t_tick.cpu_us, 1.0), Percentile(body_ms, 0.5),
       Percentile(body_ms, 0.9), Percentile(body_ms, 1.0),
@@ -378,6 +389,7 @@ int main(int argc, char** argv) {
   double speed = 0.01;  // m/s, the press's (and the lift's)
   int sweeps = 0;       // reference steps per tick (0: surface contact's joint reference)
   double warmup = 0;    // s, ticks before the per-tick run (--warmup)
+  int latency = 0;      // ticks, a body step's hand-over after its kick-off at the soonest
   double churn = 0;
   std::optional<ContactModel> contact;  // the scene's unless given
   int up = 2, steps = 40;
@@ -394,6 +406,8 @@ int main(int argc, char** argv) {
       per_tick = true;
     else if (o == "--realtime")
       realtime = true;
+    else if (o == "--latency" && a + 1 < argc)
+      latency = std::atoi(argv[++a]);
     else if (o == "--churn" && a + 1 < argc)
       churn = std::atof(argv[++a]);
     else if (o == "--lift")
@@ -454,7 +468,7 @@ int main(int argc, char** argv) {
       top = i;
   if (per_tick)
     return PerTick(served, body.rest[top], up, depth, realtime, replies, lift, speed, sweeps,
-                   warmup);
+                   warmup, latency);
   // The body's cost below steps the body alone, the probe's pose given: surface contact's proxy
   // is moved by the 1 kHz tick (haptic_contact), which this path does not run, so a surface probe
   // would stay where it first touched and its coupling spring would read the tool's travel.

@@ -147,6 +147,19 @@ void add_coupling(std::vector<int>& count, std::vector<int>& node, std::vector<M
 
 }  // namespace
 
+void warm_start(const LocalModel& last, const std::vector<Vec3>& served, LocalModel* fresh) {
+  if (!fresh->fresh) return;
+  int j = 0;  // both regions are sorted by node index (finish_region)
+  for (int a = 0; a < fresh->num; ++a) {
+    const int i = fresh->nodes[a];
+    while (j < last.num && last.nodes[j] < i) ++j;
+    if (j < last.num && last.nodes[j] == i) {
+      const Vec3 d = served[i] - fresh->x0[a];
+      if (std::isfinite(d.squaredNorm())) fresh->dx[a] = d;
+    }
+  }
+}
+
 LocalModel::LocalModel(int cap)
     : capacity(cap),
       nodes(cap, -1),
@@ -936,30 +949,46 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   // churning client, answered from estimates almost every tick, paid 12 -> 67 us of tick CPU at
   // p50 for it (bench_multirate --churn).
   const bool jointly = joint && lm.valid && probe->active && probe->proxy_placed;
+  lm.proxy_fallback = false;
   if (jointly) {
     const Vec3 updated = probe->proxy, velocity = probe->proxy_velocity;
     joint_solve();
-    // The device's side at the joint answer: the coupling's force, its stiffness with the
-    // region giving way, the tool's depth and faces; the proxy's velocity (a motion, not a jump:
-    // the update's) and the surface point it rides on from here.
     const Coupling link = coupling(m, k, R);
     const Vec3 e = probe->proxy - probe->center;
-    probe->force = link.force(e);
-    probe->depth = tool.depth;
-    probe->contacts = tool.faces;
-    probe->stiffness.setZero();
-    if (have_s && tool.faces > 0) {
-      const Mat3 H = link.hessian(e) + 1e-9 * link.k * Mat3::Identity();
-      probe->stiffness = H * (S.partialPivLu().solve(H) - Mat3::Identity());
-    } else if (tool.faces > 0) {
-      probe->stiffness = link.device_stiffness(e, tool.stiffness);
+    // A joint solve that ran out of its evaluations far from the proxy's equilibrium (the layer
+    // pushing on the tool much harder or softer than the coupling pulls) would serve the
+    // coupling's force at a proxy the region has moved into or away from: on the fine liver in
+    // real time, a hand-over tick whose first solve of the fresh model took most of the budget
+    // left the region 0.16 mm into a proxy at the device's target and served 0.18 N where the
+    // ticks around it served 0.97 N. The proxy is moved instead as a held-proxy tick moves it,
+    // against the region as the solve left it (its depth rate, swept crossings, the coupling's
+    // force and stiffness from the proxy's own equilibrium).
+    const double f_scale = std::max(tool.force.norm(), link.force(e).norm());
+    if (tool.faces > 0 && rp.norm() > kJointFallback * f_scale &&
+        rp.norm() > kJointFallback * 1e-2 * link.k * R) {
+      lm.proxy_fallback = true;
+      update_proxy(m, k, *x, cand, probe);
+    } else {
+      // The device's side at the joint answer: the coupling's force, its stiffness with the
+      // region giving way, the tool's depth and faces; the proxy's velocity (a motion, not a
+      // jump: the update's) and the surface point it rides on from here.
+      probe->force = link.force(e);
+      probe->depth = tool.depth;
+      probe->contacts = tool.faces;
+      probe->stiffness.setZero();
+      if (have_s && tool.faces > 0) {
+        const Mat3 H = link.hessian(e) + 1e-9 * link.k * Mat3::Identity();
+        probe->stiffness = H * (S.partialPivLu().solve(H) - Mat3::Identity());
+      } else if (tool.faces > 0) {
+        probe->stiffness = link.device_stiffness(e, tool.stiffness);
+      }
+      const double dt = m.options.dt;
+      if ((velocity * dt - (updated - last_proxy)).norm() <= 1e-9 * R + 1e-12 &&
+          velocity.squaredNorm() > 0)
+        probe->proxy_velocity = (probe->proxy - last_proxy) / dt;
+      anchor_proxy(m, *x, cand->triangles.data(), static_cast<int>(cand->triangles.size()),
+                   kCandidateReach * R, probe);
     }
-    const double dt = m.options.dt;
-    if ((velocity * dt - (updated - last_proxy)).norm() <= 1e-9 * R + 1e-12 &&
-        velocity.squaredNorm() > 0)
-      probe->proxy_velocity = (probe->proxy - last_proxy) / dt;
-    anchor_proxy(m, *x, cand->triangles.data(), static_cast<int>(cand->triangles.size()),
-                 kCandidateReach * R, probe);
   } else {
     solve();
   }

@@ -101,7 +101,14 @@ struct LocalModel {
   int newton_iterations = 0;  // of the last haptic_contact
   int layer_evaluations = 0;  // of the last haptic_contact (surface contact)
   double residual = 0;        // m, its final |R(dx)|
+  // Surface contact: the last joint solve ended out of its evaluations far from the proxy's
+  // equilibrium and was answered by moving the proxy alone against the region (haptic_contact).
+  bool proxy_fallback = false;
 };
+
+// A joint solve's answer stands when the proxy's residual |R_p| is within this fraction of the
+// larger of the coupling's force and the layer's push (or of 1 % of k_c R).
+inline constexpr double kJointFallback = 0.1;
 
 // The 1 kHz side's scratch for probes with surface contact, sized for the model at load: each
 // probe's candidate triangles (kept between ticks) and the layer's node forces and blocks.
@@ -218,6 +225,11 @@ double tissue_share_stiffness(const Model& m);
 void estimate_local_model(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
                           double radius, double margin, double k_t,
                           std::vector<std::pair<double, int>>* near, LocalModel* lm);
+
+// A model just handed over (fresh) starts its region where `last` (the model it replaces) left
+// the nodes the two share: dx = served - x0 for them (served: the positions the last tick
+// served), zero for the others. Only the start of the first solve changes, not its answer.
+void warm_start(const LocalModel& last, const std::vector<Vec3>& served, LocalModel* fresh);
 
 // Ticks per body step of a served model (options.body_rate_hz > 0): round(rate / body rate).
 int ticks_per_body_step(const Model& served);

@@ -55,11 +55,17 @@ class BodyWorker {
                ProbeState* probe);
 
   int every() const { return every_; }
+  // Tests and benchmarks: a body step is handed over no sooner than `ticks` ticks after its
+  // kick-off, as from a body thread that slow (deterministic where the caller waits for each
+  // step to finish before the next tick). 0: as soon as it is done.
+  void set_latency(int ticks) { latency_ = ticks; }
   bool stepping() const { return state_.load(std::memory_order_acquire) == kRun; }  // any thread
   double reach() const { return reach_; }
   std::uint64_t body_steps() const { return body_steps_; }  // swapped in
   std::uint64_t late_ticks() const { return late_ticks_; }
   std::uint64_t frozen_answers() const { return frozen_; }  // answered by the estimate
+  // Joint solves answered by the proxy moved alone (LocalModel::proxy_fallback; 1 kHz thread).
+  std::uint64_t proxy_fallbacks() const { return proxy_fallbacks_; }
   // Layer evaluations of the last answer from a local model (ticks; for benchmarks).
   int last_layer_evaluations() const { return evaluations_; }
   // The body thread's factorisations and W solves so far (relaxed reads; for statistics).
@@ -112,7 +118,8 @@ class BodyWorker {
   std::atomic<std::uint64_t> factorizations_{0}, region_solves_{0}, rollbacks_{0};
   std::atomic<std::uint64_t> newton_{0}, cg_{0};
   int since_ = 0;
-  std::uint64_t body_steps_ = 0, late_ticks_ = 0, frozen_ = 0;
+  std::uint64_t body_steps_ = 0, late_ticks_ = 0, frozen_ = 0, proxy_fallbacks_ = 0;
+  int latency_ = 0;
   int evaluations_ = 0;
   Factoring factoring_ = Factoring::kBackground;
   std::atomic<int> factor_job_{0};  // 1: the builder has a factorisation pending; 2: stop
