@@ -102,13 +102,12 @@ struct LocalModel {
   int layer_evaluations = 0;  // of the last haptic_contact (surface contact)
   double residual = 0;        // m, its final |R(dx)|
   // Surface contact: the last joint solve ended out of its evaluations far from the proxy's
-  // equilibrium and was answered by moving the proxy alone against the region (haptic_contact).
+  // equilibrium and was answered by moving the proxy alone against the region (haptic_contact):
+  // its residual |R_p| above joint_fallback times the larger of the coupling's force and the
+  // layer's push, and above joint_fallback times 1 % of k_c R.
   bool proxy_fallback = false;
+  double joint_fallback = 0.1;  // ... when |R_p| is above this fraction (haptic_contact)
 };
-
-// A joint solve's answer stands when the proxy's residual |R_p| is within this fraction of the
-// larger of the coupling's force and the layer's push (or of 1 % of k_c R).
-inline constexpr double kJointFallback = 0.1;
 
 // The 1 kHz side's scratch for probes with surface contact, sized for the model at load: each
 // probe's candidate triangles (kept between ticks) and the layer's node forces and blocks.
