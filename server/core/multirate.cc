@@ -723,11 +723,21 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   double res = 0;
   int it = 0;
   double* d = lm.g.data();  // the active block's step (3 na <= 3 capacity)
+  // With no node active (no force at dx nor at the base state), (1) is R = dx - frac u_free and
+  // its answer dx = frac u_free: taken at once, so that a region started away from it (a fresh
+  // model's warm start, warm_start) follows the body instead of staying where it was while the
+  // node law's Newton has no active row to move it by (the joint solve steps its proxy row).
+  auto settle_free = [&]() {
+    if (na > 0 || res <= tol) return;
+    for (int a = 0; a < num; ++a) lm.dx[a] = frac * lm.u_free[a];
+    res = residual();
+  };
   // Newton on (1) from the current dx.
   int budget = max_layer_evaluations;
   auto solve = [&]() {
     evaluations = 0;
     res = n3 > 0 ? residual() : 0;
+    if (n3 > 0) settle_free();
     for (it = 0; it < kMaxNewton && res > tol && na > 0; ++it) {
       if (layer && evaluations >= budget) break;
       if (!factor_jacobian()) break;
@@ -792,6 +802,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
     const double g_limit = std::min(g_stop, probe->depth + kProxyDepthRate * R);
     const double max_dp = 0.05 * R;  // m, a Newton step's proxy move at most
     res = residual();
+    settle_free();
     const double kpp = link.k + std::max(0.0, -tool.stiffness_psd.trace() / 3);
     for (int row = 0; row < n3; ++row) {
       double z = 0;

@@ -411,6 +411,45 @@ TEST_P(SurfaceMultirateTest, AJointSolveCutShortMovesTheProxyAlone) {
   EXPECT_NEAR(full, ref, 0.06 * ref);
 }
 
+// A region started away from its answer (a fresh model warm-started where the last tick served
+// it, warm_start) with the tool 0.5 mm off the body and no force at the base state: (1) has no
+// active row, and its answer is the base state moved by the free motion so far (none on the model's
+// first tick). The answer puts the region there at once. Before, the node law's Newton had no row
+// to move it by and its region stayed where it was started (0.2 mm off) until the next
+// hand-over; the surface tool's joint solve took the step (its proxy row is always there).
+TEST_P(SurfaceMultirateTest, ARegionStartedAwayWithTheToolOffFollowsTheBody) {
+  PressedSurfaceBlock pb(GetParam());
+  ASSERT_TRUE(pb.built);
+  // The tool lifted 5 mm off and the body stepped free, then factored and modelled there.
+  for (int k = 0; k < 5; ++k) {
+    set_probe(pb.s, 0, Pose(-0.5e-3));
+    pb.s.probes[0].proxy = Pose(-0.5e-3);  // the body holds the proxy where the ticks left it
+    step(pb.body, pb.s, pb.ws);
+  }
+  ASSERT_TRUE(pb.builder.refactor(pb.body, pb.s, pb.ws));
+  for (const bool nodes : {false, true}) {
+    Model m = pb.m;
+    if (nodes) m.probes[0].contact = ContactModel::kNodes;
+    LocalModel lm;
+    ASSERT_TRUE(pb.builder.build(pb.body, pb.s, pb.ws, 0, 0.5 * kRadius, &lm));
+    ASSERT_GT(lm.num, 4);
+    for (int a = 0; a < lm.num; ++a) {
+      ASSERT_EQ(lm.f0[a].norm(), 0.0);
+      lm.dx[a] = Vec3(2e-4, 0, 0);
+    }
+    ProbeState p = pb.s.probes[0];
+    std::vector<Vec3> x = pb.s.x;
+    haptic_contact(m, lm, 0, Pose(-0.5e-3), kRadius, &p, &x, nodes ? nullptr : &pb.surface);
+    double off = 0;
+    for (int a = 0; a < lm.num; ++a)
+      off = std::max({off, lm.dx[a].norm(), (x[lm.nodes[a]] - lm.x0[a]).norm()});
+    std::printf("%s: tool 0.5 mm off, region %.3g m from the base state\n",
+                nodes ? "node law" : "surface", off);
+    EXPECT_EQ(p.force.norm(), 0.0);
+    EXPECT_LT(off, 1e-12);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(TetsAndHexes, SurfaceMultirateTest, ::testing::Bool(),
                          [](const auto& info) { return info.param ? "tets" : "hexes"; });
 
