@@ -135,6 +135,19 @@ struct FullRun {
   double spread = 0;
 };
 
+// A full-body compression solved as `conica-lab compress --quasi-static --samples N` solves it
+// (N = options.body_samples increments, each brought to an out-of-balance force below 1e-4 of
+// the reaction, stopping at the first with no equilibrium), and its error as that command
+// reports it: against the target at the increments' strains from skip_strain on.
+struct BodyCheck {
+  std::vector<double> force;  // (points) N at the increments' grid indices, NaN elsewhere
+  double error = std::numeric_limits<double>::infinity();  // inf: the body stopped short
+  bool settled = false;  // every increment reached equilibrium (to the tolerance)
+  double worst = 0;      // largest out-of-balance left, of the reaction
+  int increments = 0;    // taken
+  long steps = 0;        // implicit steps
+};
+
 // The model curves of candidate cards, counted: the cell surrogate and the full body, at the
 // body's Poisson ratio `nu` (the scene's until the full-body grid picks one).
 class Evaluator {
@@ -157,6 +170,10 @@ class Evaluator {
   // not owe its shape to a buckle.
   std::vector<double> full(const std::vector<ConicalCard>& cards, double ratio);
   std::vector<double> full(const std::vector<ConicalCard>& cards) { return full(cards, nu); }
+  // The body check above at Poisson ratio `ratio` (touches nothing shared); with
+  // stop_unsettled the run ends at the first increment that does not settle.
+  BodyCheck body_check(const std::vector<ConicalCard>& cards, double ratio,
+                       bool stop_unsettled) const;
 
   // Best common scale of the moduli for force curve f: at fixed tapers and strokes, forces are
   // proportional to a common factor on every E_c.

@@ -49,7 +49,7 @@ SurrogateOptimum surrogate_at(Evaluator& ev) {
   const InitialGuess guess = initial_guess(ev);
   const CardShape one = fit_one_card(ev, guess);
   const std::vector<Candidate> found = surrogate_candidates(ev, guess, one);
-  const Layout layout = p.one_card(p.options.fit_precompression);
+  const Layout layout = p.cards > 1 ? p.all_cards() : p.one_card(p.options.fit_precompression);
   SurrogateOptimum best{ev.nu, found.front().shapes, std::numeric_limits<double>::infinity()};
   for (const Candidate& c : found) {
     const std::vector<CardShape> sh =
@@ -103,7 +103,7 @@ void run_chain(const Problem& problem, Chain* c) {
       continue;
     }
     if (mapped++ == o.space_mapping) break;
-    const Layout layout = p.one_card(o.fit_precompression);
+    const Layout layout = p.cards > 1 ? p.all_cards() : p.one_card(o.fit_precompression);
     const std::vector<double> sk = ev.surrogate(cards_of(p.base, xk));
     std::vector<double> ratio(p.points(), 1.0);
     bool ok = true;
@@ -120,6 +120,74 @@ void run_chain(const Problem& problem, Chain* c) {
   }
   c->surrogate_evaluations = ev.surrogate_evaluations;
   c->full_evaluations = ev.full_evaluations;
+}
+
+// A body check is better when it settles everywhere and the other does not, else by error.
+bool better(const BodyCheck& a, const BodyCheck& b) {
+  if (a.settled != b.settled) return a.settled;
+  return a.error < b.error;
+}
+
+std::string check_text(const BodyCheck& c) {
+  return (std::isfinite(c.error) ? "average relative error " + fmt(100 * c.error, 4) + " %"
+                                 : std::string("no equilibrium at the end of the travel")) +
+         " (" + std::to_string(c.increments) + " increments, " + std::to_string(c.steps) +
+         " implicit steps, worst out-of-balance " + fmt(c.worst, 2) +
+         (c.settled ? ")" : ", not settled everywhere)");
+}
+
+// The escalation (FitOptions::escalate_above): the one-card optimum through the body; past
+// escalate_above or unsettled, the escalate_cards-card surrogate fit from it at its Poisson
+// ratio, through the body, its moduli scaled by the body's L1-optimal factor (every force of a
+// static body scales with a common factor on every modulus) and checked again; the best body
+// kept.
+void escalate(Evaluator& ev, const std::vector<SurrogateOptimum>& optima, FitResult* r) {
+  const Problem& p = ev.problem();
+  const FitOptions& o = p.options;
+  const SurrogateOptimum& a = optima.front();
+  const BodyCheck first = ev.body_check(cards_of(p.base, a.shapes), a.nu, true);
+  ++ev.full_evaluations;
+  say(o, "one card through the full body (quasi-static, " + std::to_string(o.body_samples) +
+             " increments): " + check_text(first));
+  r->full_error_before_refine = first.error;
+  r->full = first.force;
+  r->full_error = first.error;
+  if ((first.settled && first.error <= o.escalate_above) || o.escalate_cards <= 1) return;
+  say(o, "above " + fmt(100 * o.escalate_above, 3) +
+             " % or not settled: " + std::to_string(o.escalate_cards) + " family cards");
+  FitOptions ok = o;
+  ok.cards = o.escalate_cards;
+  const Problem pk{p.spec, ok,       ok.cards, p.base,
+                   p.geo,  p.target, p.volume, stroke_bounds(ok.cards, ok)};
+  Evaluator e(pk, a.nu);
+  InitialGuess g;
+  g.best = g.best_plain = a.shapes[0];
+  const std::vector<Candidate> found = surrogate_candidates(e, g, a.shapes[0]);
+  std::vector<CardShape> x =
+      l1_fit(pk, pk.all_cards(), found.front().shapes,
+             [&e](const std::vector<ConicalCard>& cards) { return e.surrogate(cards); });
+  say(o, std::to_string(ok.cards) + " cards, surrogate: average relative error " +
+             fmt(100 * e.surrogate_error(x), 4) + " % at " + shapes_text(x));
+  std::vector<CardShape> best_shapes = a.shapes;
+  BodyCheck best = first;
+  for (int round = 0; round < 2; ++round) {
+    const BodyCheck b = e.body_check(cards_of(p.base, x), a.nu, false);
+    ++ev.full_evaluations;
+    say(o, std::to_string(ok.cards) + " cards through the full body" +
+               (round ? " (moduli scaled)" : "") + ": " + check_text(b));
+    if (better(b, best)) {
+      best = b;
+      best_shapes = x;
+    }
+    const double scale = l1_scale(b.force, p.target.data, p.target.first);
+    if (round == 1 || !b.settled || !(scale > 0)) break;
+    for (CardShape& sh : x) sh.modulus *= scale;
+  }
+  ev.surrogate_evaluations += e.surrogate_evaluations;
+  describe(ev, best_shapes, r);
+  r->full = best.force;
+  r->full_error = best.error;
+  say(o, "kept " + std::to_string(best_shapes.size()) + " card(s): full body " + check_text(best));
 }
 
 }  // namespace
@@ -162,6 +230,10 @@ void static_fit(Evaluator& ev, FitResult* r) {
   r->surrogate_error_before_refine = r->surrogate_error;
   say(o, "surrogate fit: average relative error " + fmt(100 * r->surrogate_error, 4) +
              " % at Poisson " + fmt(ev.nu, 3) + ": " + shapes_text(r->shapes));
+  if (o.escalate_above > 0 && o.full_iterations >= 0) {
+    escalate(ev, optima, r);
+    return;
+  }
   if (o.full_iterations < 0) return;
 
   // The best surrogate optima through the full body, one chain per thread.
