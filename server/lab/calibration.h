@@ -225,6 +225,8 @@ struct FitOptions {
   // (the surrogate's card).
   double escalate_above = 0;
   int escalate_cards = 3;
+  int escalate_mapping = 2;  // output space-mapping steps on the body after that (each one
+                             // K-card refit and two body checks), while above escalate_above
   int body_samples = 25;
   double static_tolerance = 1e-5;
   int stroke_raises = 1;       // kStatic: a full body that collapses before the end of the travel

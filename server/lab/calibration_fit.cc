@@ -342,6 +342,12 @@ BodyCheck Evaluator::body_check(const std::vector<ConicalCard>& cards, double ra
   qo.samples = samples;
   qo.tolerance = 1e-4;
   qo.stop_at_failure = true;
+  if (stop_unsettled) {
+    // A screening run: an increment that has not settled in 50 iterations is taken as unsettled
+    // (one that settles takes 1-3 on these bodies, and then the run is the command's).
+    qo.max_iterations = 50;
+    qo.max_parts = 1;
+  }
   bool unsettled = false;
   qo.progress = [&unsettled](int, double, double, bool settled, long) {
     if (!settled) unsettled = true;

@@ -171,7 +171,8 @@ class Evaluator {
   std::vector<double> full(const std::vector<ConicalCard>& cards, double ratio);
   std::vector<double> full(const std::vector<ConicalCard>& cards) { return full(cards, nu); }
   // The body check above at Poisson ratio `ratio` (touches nothing shared); with
-  // stop_unsettled the run ends at the first increment that does not settle.
+  // stop_unsettled, a screening run: an increment is given 50 iterations and no split, and the
+  // run ends at the first that does not settle (a run that settles everywhere is the same).
   BodyCheck body_check(const std::vector<ConicalCard>& cards, double ratio,
                        bool stop_unsettled) const;
 
@@ -241,8 +242,9 @@ struct Candidate {
   std::vector<CardShape> shapes;
   double surrogate_error = 0;
 };
+// (K cards: least squares from the best `tries` starts.)
 std::vector<Candidate> surrogate_candidates(Evaluator& ev, const InitialGuess& guess,
-                                            const CardShape& one);
+                                            const CardShape& one, int tries = 4);
 
 // The result fields of a fitted body with `shapes` (cards, groups, moduli, volume terms, its
 // surrogate curve and error) at the evaluator's Poisson ratio.

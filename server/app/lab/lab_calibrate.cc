@@ -94,6 +94,9 @@ void register_calibrate(CLI::App& app, Runner* run) {
                   "family cards of the escalation (2: edges | diagonals, 3: edges | face | body "
                   "diagonals; 1: none, the one-card body check only)")
       ->capture_default_str();
+  cmd->add_option("--escalate-mapping", o->fit.escalate_mapping,
+                  "output space-mapping steps through the full body in the escalation")
+      ->capture_default_str();
   cmd->add_option("--body-samples", o->fit.body_samples,
                   "increments of the full-body check (a divisor of --points)")
       ->capture_default_str();

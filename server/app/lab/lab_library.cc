@@ -181,6 +181,9 @@ void register_library(CLI::App& app, Runner* run) {
                   "family cards of the escalation (2: edges | diagonals, 3: edges | face | body "
                   "diagonals; 1: none, the one-card body check only)")
       ->capture_default_str();
+  cmd->add_option("--escalate-mapping", o->fit.escalate_mapping,
+                  "output space-mapping steps through the full body in the escalation")
+      ->capture_default_str();
   cmd->add_option("--body-samples", o->fit.body_samples,
                   "increments of the full-body check (a divisor of --points)")
       ->capture_default_str();
@@ -232,6 +235,7 @@ void register_library(CLI::App& app, Runner* run) {
           (fo.escalate_above > 0 && fo.full_iterations >= 0
                ? " escalate_above=" + g(fo.escalate_above, 17) +
                      " escalate_cards=" + std::to_string(fo.escalate_cards) +
+                     " escalate_mapping=" + std::to_string(fo.escalate_mapping) +
                      " body_samples=" + std::to_string(fo.body_samples)
                : std::string());
       struct Unit {
