@@ -362,7 +362,10 @@ BodyCheck Evaluator::body_check(const std::vector<ConicalCard>& cards, double ra
   out.increments = qs.increments;
   out.steps = qs.steps;
   out.worst = qs.worst_residual;
-  out.settled = got == samples && !unsettled && qs.unconverged == 0;
+  out.hard_stops = qs.hard_stops;
+  // A spring at its solid height is a body that collapsed somewhere, not an equilibrium of the
+  // card's law (its stroke bound is meant to keep every spring short of it).
+  out.settled = got == samples && !unsettled && qs.unconverged == 0 && qs.hard_stops == 0;
   if (got < samples || qs.failed_at >= 0) return out;
   double sum = 0;
   int count = 0;

@@ -12,6 +12,7 @@
 // (server/io: curve_reader.h, scene_writer.h).
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <string>
@@ -142,10 +143,12 @@ struct FullRun {
 struct BodyCheck {
   std::vector<double> force;  // (points) N at the increments' grid indices, NaN elsewhere
   double error = std::numeric_limits<double>::infinity();  // inf: the body stopped short
-  bool settled = false;  // every increment reached equilibrium (to the tolerance)
+  bool settled = false;  // every increment reached equilibrium (to the tolerance) with no
+                         // spring at its solid height (no hard stop)
   double worst = 0;      // largest out-of-balance left, of the reaction
   int increments = 0;    // taken
   long steps = 0;        // implicit steps
+  std::uint64_t hard_stops = 0;
 };
 
 // The model curves of candidate cards, counted: the cell surrogate and the full body, at the

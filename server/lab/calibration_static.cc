@@ -133,6 +133,7 @@ std::string check_text(const BodyCheck& c) {
                                  : std::string("no equilibrium at the end of the travel")) +
          " (" + std::to_string(c.increments) + " increments, " + std::to_string(c.steps) +
          " implicit steps, worst out-of-balance " + fmt(c.worst, 2) +
+         (c.hard_stops ? ", " + std::to_string(c.hard_stops) + " hard stops" : std::string()) +
          (c.settled ? ")" : ", not settled everywhere)");
 }
 
