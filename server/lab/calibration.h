@@ -214,6 +214,20 @@ struct FitOptions {
   // there), the shear term is raised to the least that keeps it. Only for scenes with a shear
   // term; 0: off (the scene's shear share only).
   double stability_margin = 1.02;
+  // kStatic, the escalation: the one-card optimum is compressed through the full body as
+  // `conica-lab compress --quasi-static --samples body_samples` compresses it (BodyCheck in
+  // lab/calibration_stages.h); when its error there is above escalate_above or an increment
+  // finds no equilibrium, the escalate_cards-card fit (edges | diagonals families, see above)
+  // from it at its Poisson ratio is checked through the full body, then with its moduli scaled
+  // by the body's L1-optimal factor, and the best body that settles everywhere is kept (the
+  // one-card fit when none beats it). A card that passes is the one-card fit unchanged; the
+  // result's full_error is the body check's. 0 (or full_iterations < 0): no full-body check
+  // (the surrogate's card).
+  double escalate_above = 0;
+  int escalate_cards = 3;
+  int escalate_mapping = 2;  // output space-mapping steps on the body after that (each one
+                             // K-card refit and two body checks), while above escalate_above
+  int body_samples = 25;
   double static_tolerance = 1e-5;
   int stroke_raises = 1;       // kStatic: a full body that collapses before the end of the travel
   double stroke_raise = 1.08;  // raises the stroke bound by this factor, at most this often      //
@@ -253,6 +267,10 @@ struct FitResult {
   int full_evaluations = 0;         // full-body compressions run
   std::string error;                // why the fit could not run (empty: it ran)
 };
+
+// The common factor s on a model curve that minimises the mean relative error against data
+// over i >= first (a weighted median); NaN when no point has a positive finite ratio.
+double l1_scale(const std::vector<double>& model, const std::vector<double>& data, int first);
 
 // The paper's metric: mean over i >= first of |model_i - data_i| / data_i.
 double average_relative_error(const std::vector<double>& model, const std::vector<double>& data,

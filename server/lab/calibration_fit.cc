@@ -10,6 +10,7 @@
 #include "core/stability.h"
 #include "lab/calibration.h"
 #include "lab/calibration_stages.h"
+#include "lab/quasi_static.h"
 
 namespace conica::lab {
 namespace detail {
@@ -320,6 +321,64 @@ FullRun Evaluator::full_at(const std::vector<ConicalCard>& cards, double ratio) 
   return run;
 }
 
+BodyCheck Evaluator::body_check(const std::vector<ConicalCard>& cards, double ratio,
+                                bool stop_unsettled) const {
+  const int n = p_.points();
+  const int samples = p_.options.body_samples;
+  BodyCheck out;
+  out.force.assign(n, std::nan(""));
+  if (samples < 1 || n % samples != 0) return out;
+  BodySpec s = p_.spec;
+  s.groups = groups(cards);
+  const ElementModuli em = element_moduli(s.groups, ratio);
+  s.bulk_modulus = em.bulk;
+  s.spread_modulus = em.spread;
+  s.shear_modulus = em.shear;
+  Model m;
+  if (s.groups.empty() || !build_model(s, &m).empty() || m.planes.empty()) return out;
+  // The plate and the solve as `conica-lab compress --quasi-static` sets them.
+  m.planes[0].stiffness = std::max(m.planes[0].stiffness, rigid_plate_stiffness(m, false));
+  QuasiStaticOptions qo;
+  qo.samples = samples;
+  qo.tolerance = 1e-4;
+  qo.stop_at_failure = true;
+  if (stop_unsettled) {
+    // A screening run: an increment that has not settled in 50 iterations is taken as unsettled
+    // (one that settles takes 1-3 on these bodies, and then the run is the command's).
+    qo.max_iterations = 50;
+    qo.max_parts = 1;
+  }
+  bool unsettled = false;
+  qo.progress = [&unsettled](int, double, double, bool settled, long) {
+    if (!settled) unsettled = true;
+  };
+  QuasiStaticStats qs;
+  const Curve c = quasi_static_curve(m, plate_load(m), plate_reaction(),
+                                     p_.options.max_strain * plate_height(m), qo, &qs, {},
+                                     [&] { return stop_unsettled && unsettled; });
+  const int stride = n / samples;
+  const int got = std::min(qs.increments, static_cast<int>(c.size()) - 1);
+  for (int j = 1; j <= got; ++j) out.force[stride * j - 1] = c[j].force;
+  out.increments = qs.increments;
+  out.steps = qs.steps;
+  out.worst = qs.worst_residual;
+  out.hard_stops = qs.hard_stops;
+  // A spring at its solid height is a body that collapsed somewhere, not an equilibrium of the
+  // card's law (its stroke bound is meant to keep every spring short of it).
+  out.settled = got == samples && !unsettled && qs.unconverged == 0 && qs.hard_stops == 0;
+  if (got < samples || qs.failed_at >= 0) return out;
+  double sum = 0;
+  int count = 0;
+  for (int j = 1; j <= samples; ++j) {
+    const int k = stride * j - 1;
+    if (k < p_.target.first) continue;
+    sum += std::abs(out.force[k] - p_.target.data[k]) / std::abs(p_.target.data[k]);
+    ++count;
+  }
+  if (count > 0) out.error = sum / count;
+  return out;
+}
+
 std::vector<double> Evaluator::full(const std::vector<ConicalCard>& cards, double ratio) {
   ++full_evaluations;
   FullRun run = full_at(cards, ratio);
@@ -367,6 +426,27 @@ ConicalCard card_with_shape(const ConicalCard& base, const CardShape& shape) {
   c.G = k0 * 16 * base.n_a * (std::pow(r2, 4) - std::pow(r1, 4)) / (d4 * (r2 - r1));
   c.precompression = shape.precompression * shape.stroke * base.L0;
   return c;
+}
+
+double l1_scale(const std::vector<double>& model, const std::vector<double>& data, int first) {
+  // sum_k |s q_k - 1| with q_k = model / data is minimised by the median of 1 / q_k weighted by
+  // q_k.
+  std::vector<std::pair<double, double>> v;
+  double total = 0;
+  for (size_t k = first; k < data.size() && k < model.size(); ++k) {
+    const double q = model[k] / data[k];
+    if (!std::isfinite(q) || !(q > 0)) continue;
+    v.push_back({1 / q, q});
+    total += q;
+  }
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  double acc = 0;
+  for (const auto& [s, w] : v) {
+    acc += w;
+    if (acc >= 0.5 * total) return s;
+  }
+  return v.back().first;
 }
 
 double average_relative_error(const std::vector<double>& model, const std::vector<double>& data,

@@ -12,6 +12,7 @@
 // (server/io: curve_reader.h, scene_writer.h).
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <string>
@@ -135,6 +136,21 @@ struct FullRun {
   double spread = 0;
 };
 
+// A full-body compression solved as `conica-lab compress --quasi-static --samples N` solves it
+// (N = options.body_samples increments, each brought to an out-of-balance force below 1e-4 of
+// the reaction, stopping at the first with no equilibrium), and its error as that command
+// reports it: against the target at the increments' strains from skip_strain on.
+struct BodyCheck {
+  std::vector<double> force;  // (points) N at the increments' grid indices, NaN elsewhere
+  double error = std::numeric_limits<double>::infinity();  // inf: the body stopped short
+  bool settled = false;  // every increment reached equilibrium (to the tolerance) with no
+                         // spring at its solid height (no hard stop)
+  double worst = 0;      // largest out-of-balance left, of the reaction
+  int increments = 0;    // taken
+  long steps = 0;        // implicit steps
+  std::uint64_t hard_stops = 0;
+};
+
 // The model curves of candidate cards, counted: the cell surrogate and the full body, at the
 // body's Poisson ratio `nu` (the scene's until the full-body grid picks one).
 class Evaluator {
@@ -157,6 +173,11 @@ class Evaluator {
   // not owe its shape to a buckle.
   std::vector<double> full(const std::vector<ConicalCard>& cards, double ratio);
   std::vector<double> full(const std::vector<ConicalCard>& cards) { return full(cards, nu); }
+  // The body check above at Poisson ratio `ratio` (touches nothing shared); with
+  // stop_unsettled, a screening run: an increment is given 50 iterations and no split, and the
+  // run ends at the first that does not settle (a run that settles everywhere is the same).
+  BodyCheck body_check(const std::vector<ConicalCard>& cards, double ratio,
+                       bool stop_unsettled) const;
 
   // Best common scale of the moduli for force curve f: at fixed tapers and strokes, forces are
   // proportional to a common factor on every E_c.
@@ -224,8 +245,9 @@ struct Candidate {
   std::vector<CardShape> shapes;
   double surrogate_error = 0;
 };
+// (K cards: least squares from the best `tries` starts.)
 std::vector<Candidate> surrogate_candidates(Evaluator& ev, const InitialGuess& guess,
-                                            const CardShape& one);
+                                            const CardShape& one, int tries = 4);
 
 // The result fields of a fitted body with `shapes` (cards, groups, moduli, volume terms, its
 // surrogate curve and error) at the evaluator's Poisson ratio.

@@ -65,7 +65,7 @@ CardShape fit_one_card(Evaluator& ev, const InitialGuess& guess) {
 }
 
 std::vector<Candidate> surrogate_candidates(Evaluator& ev, const InitialGuess& guess,
-                                            const CardShape& one) {
+                                            const CardShape& one, int max_tries) {
   const Problem& p = ev.problem();
   const FitOptions& o = p.options;
   const ShapeBounds& B = o.bounds;
@@ -121,7 +121,7 @@ std::vector<Candidate> surrogate_candidates(Evaluator& ev, const InitialGuess& g
   });
   say(o, "starts: " + std::to_string(starts.size()) + " shapes, best " +
              fmt(100 * starts.front().surrogate_error, 4) + " %");
-  const int tries = std::min<int>(4, static_cast<int>(starts.size()));
+  const int tries = std::min<int>(max_tries, static_cast<int>(starts.size()));
   for (int t = 0; t < tries; ++t) {
     const std::vector<CardShape> sh = surrogate_lm(
         ev, L, starts[t].shapes,

@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "phantom_curves.h"
@@ -323,6 +325,59 @@ TEST(CalibrationTest, ColumnFloorFollowsConicalSumsAndBoundsEarlyStiffening) {
   // A finer basis (32 x 32 tapers x strokes) solved exactly as a linear program (min sum t,
   // -t <= A w - 1 <= t, w, t >= 0) by an independent solver (HiGHS): 12.61 %.
   EXPECT_NEAR(b.error, 0.1261, 0.0005);
+}
+
+// l1_scale: the factor that minimises the mean relative error of a scaled curve, against a scan
+// of the error itself (the error is convex and piecewise linear in the factor).
+TEST(CalibrationTest, L1ScaleMinimisesTheMeanRelativeError) {
+  // q = model / data = 1, 2, 4: sum |s q - 1| is 1.25 at s = 1/4, 1.5 at 1/2, 4 at 1.
+  EXPECT_DOUBLE_EQ(l1_scale({1, 2, 4}, {1, 1, 1}, 0), 0.25);
+  EXPECT_DOUBLE_EQ(l1_scale({9, 1, 2, 4}, {1, 1, 1, 1}, 1), 0.25);  // point 0 left out
+  EXPECT_TRUE(std::isnan(l1_scale({-1, 0}, {1, 1}, 0)));
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.8, 1.3);
+  for (int trial = 0; trial < 20; ++trial) {
+    std::vector<double> model(30), data(30);
+    for (int k = 0; k < 30; ++k) {
+      data[k] = 1 + k;
+      model[k] = data[k] * u(rng);
+    }
+    const double s = l1_scale(model, data, 2);
+    auto err = [&](double f) {
+      std::vector<double> m = model;
+      for (double& v : m) v *= f;
+      return average_relative_error(m, data, 2);
+    };
+    double best = std::numeric_limits<double>::infinity();
+    for (double f = 0.6; f <= 1.4; f += 1e-5) best = std::min(best, err(f));
+    EXPECT_LE(err(s), best + 1e-9) << "trial " << trial;
+  }
+}
+
+// The static method with two cards fits both (its L1 refinement used to decode one card and
+// return a one-card body): a two-card body's own curve is recovered.
+TEST(CalibrationTest, StaticMethodFitsEveryCard) {
+  const BodySpec spec = Phantom();
+  const ConicalCard base = spec.groups[0].card.conical;
+  FitOptions o;
+  o.method = FitMethod::kStatic;
+  o.cards = 2;
+  o.max_strain = 0.5;
+  o.full_iterations = -1;
+  o.column_floor = false;
+  const std::vector<CardShape> want = {{2e5, 0.2, 0.85}, {2e5 * 36 / 17, 0.1, 0.35}};
+  const auto groups =
+      split_groups(spec, {card_with_shape(base, want[0]), card_with_shape(base, want[1])});
+  std::vector<double> grid;
+  for (int k = 1; k <= 200; ++k) grid.push_back(o.max_strain * 0.03 * k / 200);
+  const Curve c = Noisy(grid, surrogate_force(spec, groups, grid), 0.0, 1);
+  const FitResult r = calibrate(spec, {c}, o);
+  ASSERT_EQ(r.error, "");
+  ASSERT_EQ(r.shapes.size(), 2u);
+  ASSERT_EQ(r.groups.size(), 2u);
+  EXPECT_NE(r.shapes[0].stroke, r.shapes[1].stroke);
+  EXPECT_LT(r.surrogate_error, 2e-3);
+  EXPECT_NEAR(r.shapes[0].modulus / want[0].modulus, 1, 0.03);
 }
 
 }  // namespace

@@ -138,6 +138,7 @@ void register_library(CLI::App& app, Runner* run) {
   auto o = std::make_shared<Opts>();
   o->fit.space_mapping = 2;
   o->fit.verify_candidates = 2;
+  o->fit.escalate_above = 0.02;
   CLI::App* cmd = app.add_subcommand(
       "library",
       "Calibrate every recipe of a database of compression tests into a material "
@@ -168,7 +169,23 @@ void register_library(CLI::App& app, Runner* run) {
   cmd->add_option("--space-mapping", o->fit.space_mapping, "static: space-mapping steps")
       ->capture_default_str();
   cmd->add_option("--full-iterations", o->fit.full_iterations,
-                  "-1: surrogate only (no full body; fast, for tests of the sweep itself)")
+                  "-1: surrogate only (no full body, no escalation; fast, for tests of the sweep "
+                  "itself)")
+      ->capture_default_str();
+  cmd->add_option("--escalate-above", o->fit.escalate_above,
+                  "static: the one-card fit's full body (quasi-static, --body-samples increments) "
+                  "above this mean relative error, or unsettled, escalates to --escalate-cards "
+                  "family cards checked through the full body (0: no full-body check)")
+      ->capture_default_str();
+  cmd->add_option("--escalate-cards", o->fit.escalate_cards,
+                  "family cards of the escalation (2: edges | diagonals, 3: edges | face | body "
+                  "diagonals; 1: none, the one-card body check only)")
+      ->capture_default_str();
+  cmd->add_option("--escalate-mapping", o->fit.escalate_mapping,
+                  "output space-mapping steps through the full body in the escalation")
+      ->capture_default_str();
+  cmd->add_option("--body-samples", o->fit.body_samples,
+                  "increments of the full-body check (a divisor of --points)")
       ->capture_default_str();
   cmd->add_option("--stability-margin", o->fit.stability_margin,
                   "the material stays strongly elliptic under compression to this x max strain "
@@ -207,14 +224,20 @@ void register_library(CLI::App& app, Runner* run) {
       FitOptions fo = o->fit;
       fo.method = o->method == "static" ? FitMethod::kStatic : FitMethod::kGrid;
       // The key: program, scene, options and every data file's bytes.
-      const std::string options = "method=" + o->method + " max_strain=" + g(fo.max_strain, 17) +
-                                  " skip_strain=" + g(fo.skip_strain, 17) +
-                                  " points=" + std::to_string(fo.points) +
-                                  " poisson_grid=" + std::to_string(fo.poisson_grid) +
-                                  " poisson_min=" + g(fo.poisson_min, 17) +
-                                  " space_mapping=" + std::to_string(fo.space_mapping) +
-                                  " full_iterations=" + std::to_string(fo.full_iterations) +
-                                  " stability_margin=" + g(fo.stability_margin, 17);
+      const std::string options =
+          "method=" + o->method + " max_strain=" + g(fo.max_strain, 17) +
+          " skip_strain=" + g(fo.skip_strain, 17) + " points=" + std::to_string(fo.points) +
+          " poisson_grid=" + std::to_string(fo.poisson_grid) +
+          " poisson_min=" + g(fo.poisson_min, 17) +
+          " space_mapping=" + std::to_string(fo.space_mapping) +
+          " full_iterations=" + std::to_string(fo.full_iterations) +
+          " stability_margin=" + g(fo.stability_margin, 17) +
+          (fo.escalate_above > 0 && fo.full_iterations >= 0
+               ? " escalate_above=" + g(fo.escalate_above, 17) +
+                     " escalate_cards=" + std::to_string(fo.escalate_cards) +
+                     " escalate_mapping=" + std::to_string(fo.escalate_mapping) +
+                     " body_samples=" + std::to_string(fo.body_samples)
+               : std::string());
       struct Unit {
         Recipe recipe;
         std::string key, provenance;
@@ -326,9 +349,16 @@ void register_library(CLI::App& app, Runner* run) {
         head += "# strain range: error over " + g(fo.skip_strain) + " to " + g(fo.max_strain) +
                 " engineering strain\n";
         head += "# error: " + g(100 * error, 4) + " % mean relative (" + which + ")\n";
-        head += "# card: E_c " + g(r.shape.modulus) + " Pa, taper " + g(r.shape.taper) +
-                ", stroke " + g(r.shape.stroke) + ", pre-compression " + g(r.shape.precompression) +
-                " S; body Poisson " + g(r.poisson, 4) + "\n";
+        for (size_t c = 0; c < r.shapes.size(); ++c) {
+          const CardShape& sh = r.shapes[c];
+          head += "# card" +
+                  (r.shapes.size() > 1 ? " " + std::to_string(c + 1) + " (" +
+                                             families_name(card_families(r.shapes.size())[c]) + ")"
+                                       : std::string()) +
+                  ": E_c " + g(sh.modulus) + " Pa, taper " + g(sh.taper) + ", stroke " +
+                  g(sh.stroke) + ", pre-compression " + g(sh.precompression) + " S";
+          head += c + 1 < r.shapes.size() ? "\n" : "; body Poisson " + g(r.poisson, 4) + "\n";
+        }
         head += "# index: " + g(100 * error, 4) + "," + g(r.poisson, 4) + "," + g(r.shape.modulus) +
                 "," + g(r.shape.taper) + "," + g(r.shape.stroke) + "," + g(r.shape.precompression) +
                 "," + g(r.bulk_modulus) + "," + g(r.shear_modulus) + "\n";
