@@ -4,9 +4,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "core/body.h"
 #include "probed_block.h"
@@ -69,19 +72,30 @@ TEST(StepTest, StageTimersAddUpToTheTimeOfTheSteps) {
   ASSERT_EQ(build_model(b, &m), "");
   State s = make_state(m);
   Workspace ws(m);
+  auto stages = [&] {
+    std::uint64_t sum = 0;
+    for (std::uint64_t ns : s.counters.stage_ns) sum += ns;
+    return sum;
+  };
   std::uint64_t wall = 0;
+  std::vector<std::int64_t> gap;  // ns, each step's time outside every stage
   for (int t = 0; t < 300; ++t) {
     set_probe(s, 0, Vec3(0.02, 0.02, 0.025 - 2e-5 * t));
+    const std::uint64_t before = stages();
     const auto t0 = std::chrono::steady_clock::now();
     step(m, s, ws);
-    wall +=
+    const std::uint64_t ns =
         std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0)
             .count();
+    wall += ns;
+    gap.push_back(static_cast<std::int64_t>(ns) - static_cast<std::int64_t>(stages() - before));
   }
-  std::uint64_t sum = 0;
-  for (std::uint64_t ns : s.counters.stage_ns) sum += ns;
-  EXPECT_LE(sum, wall);
-  EXPECT_GE(sum, wall - 300 * 2000) << "more than 2 us per step outside every stage";
+  EXPECT_LE(stages(), wall);
+  EXPECT_GE(*std::min_element(gap.begin(), gap.end()), 0) << "a stage timed beyond its step";
+  // The median step: a gap in the timers shows in every step, a preemption of the test between
+  // the step's entry and its first stage (a loaded machine) in a few.
+  std::nth_element(gap.begin(), gap.begin() + gap.size() / 2, gap.end());
+  EXPECT_LE(gap[gap.size() / 2], 2000) << "more than 2 us of the median step outside every stage";
   EXPECT_GT(s.counters.stage_ns[static_cast<int>(Stage::kSprings)], 0u);
   EXPECT_GT(s.counters.stage_ns[static_cast<int>(Stage::kContact)], 0u);
   EXPECT_GT(s.counters.stage_ns[static_cast<int>(Stage::kIntegrate)], 0u);
