@@ -300,14 +300,19 @@ std::vector<double> Evaluator::surrogate(const std::vector<ConicalCard>& cards) 
                         p_.spec.shear_stiffening);
 }
 
-FullRun Evaluator::full_at(const std::vector<ConicalCard>& cards, double ratio) const {
-  const int n = p_.points();
+BodySpec Evaluator::body_of(const std::vector<ConicalCard>& cards, double ratio) const {
   BodySpec s = p_.spec;
   s.groups = groups(cards);
   const ElementModuli em = element_moduli(s.groups, ratio);
   s.bulk_modulus = em.bulk;
   s.spread_modulus = em.spread;
   s.shear_modulus = em.shear;
+  return s;
+}
+
+FullRun Evaluator::full_at(const std::vector<ConicalCard>& cards, double ratio) const {
+  const int n = p_.points();
+  const BodySpec s = body_of(cards, ratio);
   Model m;
   FullRun run{std::vector<double>(n, std::nan("")), 0};
   if (s.groups.empty() || !build_model(s, &m).empty()) return run;
@@ -328,12 +333,7 @@ BodyCheck Evaluator::body_check(const std::vector<ConicalCard>& cards, double ra
   BodyCheck out;
   out.force.assign(n, std::nan(""));
   if (samples < 1 || n % samples != 0) return out;
-  BodySpec s = p_.spec;
-  s.groups = groups(cards);
-  const ElementModuli em = element_moduli(s.groups, ratio);
-  s.bulk_modulus = em.bulk;
-  s.spread_modulus = em.spread;
-  s.shear_modulus = em.shear;
+  const BodySpec s = body_of(cards, ratio);
   Model m;
   if (s.groups.empty() || !build_model(s, &m).empty() || m.planes.empty()) return out;
   // The plate and the solve as `conica-lab compress --quasi-static` sets them.

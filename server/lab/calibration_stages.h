@@ -159,6 +159,8 @@ class Evaluator {
   const Problem& problem() const { return p_; }
 
   std::vector<SpringGroupSpec> groups(const std::vector<ConicalCard>& cards) const;
+  // The problem's body with these cards and the element moduli they give at Poisson ratio.
+  BodySpec body_of(const std::vector<ConicalCard>& cards, double ratio) const;
   double bulk_for(const std::vector<SpringGroupSpec>& groups, double ratio) const;
   // Safe to call from several threads at once (full_at's grid): its root is found afresh;
   // surrogate() brackets it about the last one (shear_hint_).

@@ -32,6 +32,12 @@ void register_fem_reference(CLI::App& app, Runner* run);
 void register_validate(CLI::App& app, Runner* run);
 void register_library(CLI::App& app, Runner* run);
 
+struct FitOptions;
+// The static fit's full-body check and escalation, and the stability margin, as calibrate and
+// library both take them (--escalate-above, --escalate-cards, --escalate-mapping,
+// --body-samples, --stability-margin).
+void add_full_body_check_options(CLI::App* cmd, FitOptions* fit);
+
 struct TradeoffRow;
 // The speed/accuracy sweep of conica-lab tradeoff (quick: the small one). Scenes are found from
 // the working directory or the source tree. Returns false with the reason in *error.

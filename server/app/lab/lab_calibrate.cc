@@ -23,6 +23,28 @@
 
 namespace conica::lab {
 
+void add_full_body_check_options(CLI::App* cmd, FitOptions* fit) {
+  cmd->add_option("--escalate-above", fit->escalate_above,
+                  "static: the one-card fit's full body (quasi-static, --body-samples increments) "
+                  "above this mean relative error, or unsettled, escalates to --escalate-cards "
+                  "family cards checked through the full body (0: no full-body check)")
+      ->capture_default_str();
+  cmd->add_option("--escalate-cards", fit->escalate_cards,
+                  "family cards of the escalation (2: edges | diagonals, 3: edges | face | body "
+                  "diagonals; 1: none, the one-card body check only)")
+      ->capture_default_str();
+  cmd->add_option("--escalate-mapping", fit->escalate_mapping,
+                  "output space-mapping steps through the full body in the escalation")
+      ->capture_default_str();
+  cmd->add_option("--body-samples", fit->body_samples,
+                  "increments of the full-body check (a divisor of --points)")
+      ->capture_default_str();
+  cmd->add_option("--stability-margin", fit->stability_margin,
+                  "the material stays strongly elliptic under compression to this x max strain "
+                  "(the shear term raised where needed; 0: off)")
+      ->capture_default_str();
+}
+
 void register_calibrate(CLI::App& app, Runner* run) {
   struct Opts {
     std::vector<std::string> data;
@@ -85,25 +107,7 @@ void register_calibrate(CLI::App& app, Runner* run) {
       ->capture_default_str();
   cmd->add_option("--poisson-min", o->fit.poisson_min, "lowest Poisson ratio of that grid")
       ->capture_default_str();
-  cmd->add_option("--escalate-above", o->fit.escalate_above,
-                  "static: the one-card fit's full body (quasi-static, --body-samples increments) "
-                  "above this mean relative error, or unsettled, escalates to --escalate-cards "
-                  "family cards checked through the full body (0: no full-body check)")
-      ->capture_default_str();
-  cmd->add_option("--escalate-cards", o->fit.escalate_cards,
-                  "family cards of the escalation (2: edges | diagonals, 3: edges | face | body "
-                  "diagonals; 1: none, the one-card body check only)")
-      ->capture_default_str();
-  cmd->add_option("--escalate-mapping", o->fit.escalate_mapping,
-                  "output space-mapping steps through the full body in the escalation")
-      ->capture_default_str();
-  cmd->add_option("--body-samples", o->fit.body_samples,
-                  "increments of the full-body check (a divisor of --points)")
-      ->capture_default_str();
-  cmd->add_option("--stability-margin", o->fit.stability_margin,
-                  "the material stays strongly elliptic under compression to this x max strain "
-                  "(the shear term raised where needed; 0: off)")
-      ->capture_default_str();
+  add_full_body_check_options(cmd, &o->fit);
   cmd->add_option("--static-stroke-margin", o->fit.static_stroke_margin,
                   "static: a card's stroke is at least this times its springs' largest strain")
       ->capture_default_str();

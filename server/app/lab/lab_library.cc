@@ -172,25 +172,7 @@ void register_library(CLI::App& app, Runner* run) {
                   "-1: surrogate only (no full body, no escalation; fast, for tests of the sweep "
                   "itself)")
       ->capture_default_str();
-  cmd->add_option("--escalate-above", o->fit.escalate_above,
-                  "static: the one-card fit's full body (quasi-static, --body-samples increments) "
-                  "above this mean relative error, or unsettled, escalates to --escalate-cards "
-                  "family cards checked through the full body (0: no full-body check)")
-      ->capture_default_str();
-  cmd->add_option("--escalate-cards", o->fit.escalate_cards,
-                  "family cards of the escalation (2: edges | diagonals, 3: edges | face | body "
-                  "diagonals; 1: none, the one-card body check only)")
-      ->capture_default_str();
-  cmd->add_option("--escalate-mapping", o->fit.escalate_mapping,
-                  "output space-mapping steps through the full body in the escalation")
-      ->capture_default_str();
-  cmd->add_option("--body-samples", o->fit.body_samples,
-                  "increments of the full-body check (a divisor of --points)")
-      ->capture_default_str();
-  cmd->add_option("--stability-margin", o->fit.stability_margin,
-                  "the material stays strongly elliptic under compression to this x max strain "
-                  "(the shear term raised where needed; 0: off)")
-      ->capture_default_str();
+  add_full_body_check_options(cmd, &o->fit);
   cmd->add_option("--threads", o->fit.threads, "threads per recipe (0: one per hardware thread)")
       ->capture_default_str();
   cmd->callback([o, run] {
