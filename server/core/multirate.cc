@@ -737,7 +737,7 @@ void haptic_contact(const Model& m, LocalModel& lm, int k, const Vec3& center, d
   auto solve = [&]() {
     evaluations = 0;
     res = n3 > 0 ? residual() : 0;
-    if (n3 > 0) settle_free();
+    settle_free();
     for (it = 0; it < kMaxNewton && res > tol && na > 0; ++it) {
       if (layer && evaluations >= budget) break;
       if (!factor_jacobian()) break;
