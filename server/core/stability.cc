@@ -114,7 +114,9 @@ double acoustic_min(const Mat9& A, const Vec3& n, Vec3* polarisation) {
     for (int j = 0; j < 3; ++j)
       for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b) Q(i, j) += A(idx(i, a), idx(j, b)) * n(a) * n(b);
-  const Eigen::SelfAdjointEigenSolver<Mat3> es(Q);
+  // The eigenvalues alone when no polarisation is asked (the same arithmetic for them, less work).
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(
+      Q, polarisation ? Eigen::ComputeEigenvectors : Eigen::EigenvaluesOnly);
   if (polarisation) *polarisation = es.eigenvectors().col(0);
   return es.eigenvalues()(0);
 }

@@ -149,6 +149,7 @@ BodyStats BodyWorker::stats() const {
   b.factorizations = factorizations();
   b.rollbacks = rollbacks();
   b.step_us = 1e-3 * static_cast<double>(last_body_ns());
+  b.proxy_fallbacks = proxy_fallbacks();
   return b;
 }
 

@@ -115,13 +115,15 @@ struct Incoming {
 // `window` ticks, refreshed a few times per second.
 // Multi-rate serving (solver body_rate_hz, loop/body_worker.h): the body thread's counters.
 struct BodyStats {
-  std::uint64_t steps = 0;           // body steps swapped in
-  std::uint64_t late_ticks = 0;      // ticks a body step was due while the last still ran
-  std::uint64_t estimates = 0;       // probe answers from the estimate (no local model in reach)
-  std::uint64_t factorizations = 0;  // of the body's system
-  std::uint64_t rollbacks = 0;       // the body's guard trips (the served state is not stepped:
-                                     // its own rollbacks stay 0)
-  double step_us = 0;                // the last body step with its local models
+  std::uint64_t steps = 0;            // body steps swapped in
+  std::uint64_t late_ticks = 0;       // ticks a body step was due while the last still ran
+  std::uint64_t estimates = 0;        // probe answers from the estimate (no local model in reach)
+  std::uint64_t factorizations = 0;   // of the body's system
+  std::uint64_t rollbacks = 0;        // the body's guard trips (the served state is not stepped:
+                                      // its own rollbacks stay 0)
+  double step_us = 0;                 // the last body step with its local models
+  std::uint64_t proxy_fallbacks = 0;  // surface answers by the proxy moved alone (the joint
+                                      // solve ran out far from equilibrium; core/multirate.h)
 };
 
 struct LoopStats {

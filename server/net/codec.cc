@@ -143,6 +143,7 @@ void encode_stats(const LoopStatsData& s, const Counters& c, v1::LoopStats* out)
   out->set_body_estimates(s.body.estimates);
   out->set_body_factorizations(s.body.factorizations);
   out->set_body_step_us(s.body.step_us);
+  out->set_body_proxy_fallbacks(s.body.proxy_fallbacks);
   out->set_body_rollbacks(s.body.rollbacks);
   out->set_rollbacks(c.rollbacks);
   out->set_nan_events(c.nan_events);

@@ -95,10 +95,10 @@ class Server::Events final : public loop::Observer {
         c.rollbacks);
     if (s.body.steps > 0)
       spdlog::info(
-          "body: {} steps, {} late ticks, {} estimated answers, {} factorisations, {} rollbacks; "
-          "last step {:.0f} us",
-          s.body.steps, s.body.late_ticks, s.body.estimates, s.body.factorizations,
-          s.body.rollbacks, s.body.step_us);
+          "body: {} steps, {} late ticks, {} estimated answers, {} proxy fallbacks, {} "
+          "factorisations, {} rollbacks; last step {:.0f} us",
+          s.body.steps, s.body.late_ticks, s.body.estimates, s.body.proxy_fallbacks,
+          s.body.factorizations, s.body.rollbacks, s.body.step_us);
   }
 
   // Once per kind per 10 s, with the number suppressed since.

@@ -164,6 +164,7 @@ TEST(CodecTest, BodyBoxAndStateFrame) {
   stats.body.estimates = 3;
   stats.body.factorizations = 4;
   stats.body.rollbacks = 1;
+  stats.body.proxy_fallbacks = 6;
   stats.body.step_us = 812.5;
   v1::ServerMessage msg;
   for (bool positions : {true, false, true}) {  // reuse: fields are overwritten, not appended
@@ -182,6 +183,7 @@ TEST(CodecTest, BodyBoxAndStateFrame) {
     EXPECT_EQ(f.stats().body_estimates(), 3u);
     EXPECT_EQ(f.stats().body_factorizations(), 4u);
     EXPECT_EQ(f.stats().body_rollbacks(), 1u);
+    EXPECT_EQ(f.stats().body_proxy_fallbacks(), 6u);
     EXPECT_EQ(f.stats().body_step_us(), 812.5);
   }
   EXPECT_FLOAT_EQ(msg.state().positions(3 * 319 + 2), 0.04f);  // last node: the top corner

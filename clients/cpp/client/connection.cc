@@ -210,10 +210,11 @@ std::string describe_stats(const v1::LoopStats& s) {
   if (s.body_steps() > 0) {
     std::snprintf(buf, sizeof buf,
                   "\n  body thread    %llu steps, %llu late ticks, %llu estimated answers, %llu "
-                  "factorisations, %llu rollbacks, last step %.0f us",
+                  "proxy fallbacks, %llu factorisations, %llu rollbacks, last step %.0f us",
                   static_cast<unsigned long long>(s.body_steps()),
                   static_cast<unsigned long long>(s.body_late_ticks()),
                   static_cast<unsigned long long>(s.body_estimates()),
+                  static_cast<unsigned long long>(s.body_proxy_fallbacks()),
                   static_cast<unsigned long long>(s.body_factorizations()),
                   static_cast<unsigned long long>(s.body_rollbacks()), s.body_step_us());
     out += buf;
