@@ -10,6 +10,7 @@ import argparse
 import csv
 import os
 import re
+import shutil
 import socket
 import subprocess
 import sys
@@ -133,6 +134,7 @@ def main():
         except subprocess.TimeoutExpired:
             server.kill()
     print("all end-to-end checks passed")
+    shutil.rmtree(tmp, ignore_errors=True)  # kept after a failure (check exits before this)
 
 
 if __name__ == "__main__":

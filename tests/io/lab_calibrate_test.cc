@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "io/curve_reader.h"
 #include "io/scene.h"
@@ -27,8 +28,17 @@ std::string TempPath(const std::string& name) {
   return ::testing::TempDir() + "conica_lab_calibrate_" + std::to_string(getpid()) + "_" + name;
 }
 
+// Removes the files a test wrote when it ends, pass or fail.
+struct RemovedAtEnd {
+  std::vector<std::string> paths;
+  ~RemovedAtEnd() {
+    for (const std::string& p : paths) std::filesystem::remove(p);
+  }
+};
+
 TEST(LabCalibrate, CardAndSceneCarryTheFittedNumbers) {
   const std::string card = TempPath("card.pbtxt"), scene = TempPath("scene.pbtxt");
+  const RemovedAtEnd cleanup{{card, scene}};
   const auto r = run_lab("calibrate --scene '" + kScene + "' --data '" + kData +
                          "' --max-strain 0.5 --full-iterations -1 --stability-margin 0 --out '" +
                          card + "' --scene-out '" + scene + "'");
@@ -86,6 +96,7 @@ TEST(LabCalibrate, BadCurvesStopItNamingFileAndLine) {
   EXPECT_THAT(r.output, HasSubstr("before the 21 mm asked (strain 0.7)"));
   // A tension curve.
   const std::string tension = TempPath("tension.csv");
+  const RemovedAtEnd cleanup{{card, tension}};
   std::ofstream(tension) << "Compression (mm),Load (N)\n0,0\n-1,-2\n-2,-4\n";
   r = run_lab("calibrate --scene '" + kScene + "' --data '" + tension +
               "' --full-iterations -1 --out '" + card + "'");

@@ -27,8 +27,10 @@ function check(cond, what) {
   if (!cond) failures += 1;
   return cond;
 }
+let tmpDir = null;  // the stack's logs and recordings: removed after a passing run, kept otherwise
 async function main() {
   const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'conica-viewer-'));
+  tmpDir = tmp;
   const stack = await startStack({ ...args, seconds: args.limit, dir: tmp });
   if (!check(stack !== null, 'bridge serves the page')) return;
   log(`server ${stack.probe} ${stack.state} ${stack.control}, page ${stack.url}`);
@@ -144,6 +146,8 @@ try {
 } finally {
   await stopAll();
   clearTimeout(guard);
+  if (tmpDir && !failures) fs.rmSync(tmpDir, { recursive: true, force: true });
+  else if (tmpDir) console.log(`logs kept in ${tmpDir}`);
 }
 console.log(failures ? `${failures} viewer check(s) failed` : 'all viewer checks passed');
 process.exit(failures ? 1 : 0);
