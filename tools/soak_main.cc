@@ -18,7 +18,8 @@
 //   missed_ticks=A ticks=B errors=C rss_start_kib=D rss_end_kib=E
 // errors counts what should not happen: unanswered requests, wrong replies, server-side errors
 // beyond the malformed messages sent on purpose, client processes that failed. rss_start is taken
-// after a warm-up (the first 10 % of the run, at most 30 s); the value at launch is printed too.
+// after a warm-up (--warmup seconds; by default the first 10 % of the run, at most 30 s); the
+// value at launch is printed too.
 // Exit status 1 when errors > 0, missed ticks exceed --max-missed-fraction of the ticks, or
 // memory grew by more than --max-rss-growth-kib; 128 + signal number when interrupted.
 #include <fcntl.h>
@@ -585,7 +586,7 @@ double median(std::vector<double> v) {
 int main(int argc, char** argv) {
   CLI::App app{
       "conica-soak: the server under client churn; no crash, few missed ticks, flat memory"};
-  double seconds = 60, rate_hz = 1000, max_missed = 0.001;
+  double seconds = 60, rate_hz = 1000, max_missed = 0.001, warmup = -1;
   int clients = 4;
   long max_growth_kib = 1024;
   std::string builtin = "cube", scene_file, profile_csv, contact = "surface";
@@ -607,6 +608,11 @@ int main(int argc, char** argv) {
           ->check(CLI::IsMember({"surface", "nodes"}));
   app.add_option("--max-missed-fraction", max_missed, "goal: missed ticks / ticks (default 0.001)");
   app.add_option("--max-rss-growth-kib", max_growth_kib, "goal: VmRSS growth, KiB (default 1024)");
+  app.add_option("--warmup", warmup,
+                 "s, the warm-up before memory and missed ticks are counted (default: 10 % of the "
+                 "run, at most 30 s; a large multi-rate body's factors and local models take "
+                 "longer to reach their working size under churn, docs/reliability.md)")
+      ->check(CLI::Range(0.0, 1e6));
   app.add_flag("--probe-per-client", probe_per_client,
                "give each client a probe of its own (probe id = client index; the scene's probe "
                "copied), as devices have, instead of all of them moving probe 0");
@@ -624,6 +630,11 @@ int main(int argc, char** argv) {
   app.add_flag("--subscriber-only", subscriber_only, "run the state subscriber")->group("");
   app.add_option("--probe-id", probe_id, "the client's probe")->group("");
   CLI11_PARSE(app, argc, argv);
+  if (warmup >= seconds) {
+    std::fprintf(stderr, "conica-soak: --warmup %g s must be shorter than --seconds %g s\n", warmup,
+                 seconds);
+    return 2;
+  }
   if (client_only >= 0 || subscriber_only)
     return run_child(subscriber_only ? -1 : client_only, seconds,
                      static_cast<std::uint32_t>(std::max(0, probe_id)));
@@ -715,8 +726,8 @@ int main(int argc, char** argv) {
   const auto t0 = Clock::now();
   const auto end =
       t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
-  const auto warm = t0 + std::chrono::duration_cast<Clock::duration>(
-                             std::chrono::duration<double>(std::min(30.0, 0.1 * seconds)));
+  const auto warm = t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
+                             warmup >= 0 ? warmup : std::min(30.0, 0.1 * seconds)));
   Tally tally;
   std::atomic<bool> stop{false};
   std::vector<std::thread> threads;
