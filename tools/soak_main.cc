@@ -609,9 +609,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-missed-fraction", max_missed, "goal: missed ticks / ticks (default 0.001)");
   app.add_option("--max-rss-growth-kib", max_growth_kib, "goal: VmRSS growth, KiB (default 1024)");
   app.add_option("--warmup", warmup,
-                 "s, the warm-up before memory and missed ticks are counted (default: 10 % of the "
-                 "run, at most 30 s; a large multi-rate body's factors and local models take "
-                 "longer to reach their working size under churn, docs/reliability.md)")
+                 "s, the warm-up before memory and missed ticks are counted, taken at the first "
+                 "once-a-second sample past it (default: 10 % of the run, at most 30 s; a large "
+                 "multi-rate body's factors and local models take longer to reach their working "
+                 "size under churn, docs/reliability.md)")
       ->check(CLI::Range(0.0, 1e6));
   app.add_flag("--probe-per-client", probe_per_client,
                "give each client a probe of its own (probe id = client index; the scene's probe "
