@@ -8,7 +8,6 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <vector>
 
 #include "io/curve_reader.h"
 #include "io/scene.h"
@@ -19,6 +18,7 @@ namespace conica {
 namespace {
 
 using ::testing::HasSubstr;
+using testing::RemovedAtEnd;
 using testing::run_lab;
 
 const std::string kScene = CONICA_SOURCE_DIR "/configs/phantom-cylinder.pbtxt";
@@ -27,14 +27,6 @@ const std::string kData = CONICA_SHARED_DIR "/data/phantoms/EF30_0T/EF30_0T_A1.c
 std::string TempPath(const std::string& name) {
   return ::testing::TempDir() + "conica_lab_calibrate_" + std::to_string(getpid()) + "_" + name;
 }
-
-// Removes the files a test wrote when it ends, pass or fail.
-struct RemovedAtEnd {
-  std::vector<std::string> paths;
-  ~RemovedAtEnd() {
-    for (const std::string& p : paths) std::filesystem::remove(p);
-  }
-};
 
 TEST(LabCalibrate, CardAndSceneCarryTheFittedNumbers) {
   const std::string card = TempPath("card.pbtxt"), scene = TempPath("scene.pbtxt");

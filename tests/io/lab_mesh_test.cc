@@ -17,6 +17,7 @@ namespace {
 using ::testing::HasSubstr;
 
 using conica::testing::LabRun;
+using conica::testing::RemovedAtEnd;
 using conica::testing::run_lab;
 
 TEST(LabMesh, Liver2Summary) {
@@ -76,6 +77,7 @@ TEST(LabRun, SameInputsGiveTheSameBytesAndASummary) {
   const std::string script = std::string(CONICA_SOURCE_DIR) + "/configs/probes/press-center.csv";
   const std::string out1 = ::testing::TempDir() + "run1.csv",
                     out2 = ::testing::TempDir() + "run2.csv";
+  const RemovedAtEnd cleanup{{out1, out2}};
   const std::string args =
       "run --scene '" + scene + "' --probe-script '" + script + "' --relative --ticks 1500 --out ";
   const LabRun a = run_lab(args + "'" + out1 + "'");
@@ -94,6 +96,7 @@ TEST(LabRun, SameInputsGiveTheSameBytesAndASummary) {
 
 TEST(LabRun, BadProbeScriptNamesFileLineAndColumn) {
   const std::string bad = ::testing::TempDir() + "bad-script.csv";
+  const RemovedAtEnd cleanup{{bad}};
   std::ofstream(bad) << "t,probe,x,y,z\n0,0,0,0,0\n0.1,0,0,zero,0\n";
   const LabRun r =
       run_lab("run --scene '" + std::string(CONICA_SOURCE_DIR) +

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace conica::testing {
 
@@ -37,5 +38,13 @@ inline std::string slurp(const std::filesystem::path& path) {
   s << in.rdbuf();
   return s.str();
 }
+
+// Removes the files a test wrote when it ends, pass or fail.
+struct RemovedAtEnd {
+  std::vector<std::string> paths;
+  ~RemovedAtEnd() {
+    for (const std::string& p : paths) std::filesystem::remove(p);
+  }
+};
 
 }  // namespace conica::testing
