@@ -67,10 +67,7 @@ TEST(LabMesh, MissingFileExitsNonZero) {
 }  // namespace
 
 // conica-lab run: deterministic headless runs (same inputs -> same bytes) and its summary line.
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
+using conica::testing::slurp;
 
 TEST(LabRun, SameInputsGiveTheSameBytesAndASummary) {
   const std::string scene = std::string(CONICA_SOURCE_DIR) + "/configs/paper-cube.pbtxt";
