@@ -136,6 +136,7 @@ int PerTick(const Model& served, const Vec3& top, int up, double depth, bool rea
   ref.options.newton_tolerance = 0;
   ref.options.cg_iterations = 400;
   ref.options.cg_tolerance = 1e-10;
+  ref.options.bdf2 = false;  // backward Euler at 1 kHz: the same reference for either scheme
   // Surface contact: each reference tick is the step with the proxy in joint equilibrium with
   // the nodes it leaves (joint_proxy_step, core/multirate.h), unless --ref-sweeps asks for N
   // alternating sweeps (the proxy moved against the nodes, then the body with it held).

@@ -598,6 +598,10 @@ State make_state(const Model& model) {
   State s;
   s.x = model.rest;
   s.v.assign(model.rest.size(), Vec3::Zero());
+  if (model.options.bdf2) {
+    s.x_prev = s.x;
+    s.v_prev = s.v;
+  }
   s.maxwell.assign(model.rest_length.size(), 0.0);
   s.probes.resize(model.probes.size());
   for (size_t k = 0; k < model.probes.size(); ++k) {

@@ -35,7 +35,8 @@ void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const
                         ProbeState* p, Workspace* ws, bool with_jacobian,
                         const std::vector<int>* nodes) {
   const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
-  const double h = detail::substep_of(m);
+  // The implicit step's own h (BDF2: 2 / 3 of the substep) once it has begun.
+  const double h = ws && ws->system.h > 0 ? ws->system.h : detail::substep_of(m);
   p->force.setZero();
   p->stiffness.setZero();
   p->contacts = 0;
@@ -67,7 +68,7 @@ void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const
 void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                     const std::vector<int>* nodes) {
   const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
-  const double h = detail::substep_of(m);
+  const double h = ws.system.h > 0 ? ws.system.h : detail::substep_of(m);
   for (int q = 0; q < ws.contact.num_nodes; ++q) {
     const int i = ws.contact.nodes[q];
     ws.contact.n[i].setZero();

@@ -91,6 +91,13 @@ struct SolverOptions {
   // Hessians (prepare_tet_tangents, projected where indefinite), not the Gauss-Newton blocks
   // (volume g g^T, the shear term's Laplacian); hexahedra keep the Gauss-Newton blocks.
   bool exact_tangent = false;
+  // Implicit Euler: the second-order backward differentiation formula (BDF2) from the second step
+  // on, backward Euler on the first and after a rollback. BDF2 is backward Euler of step 2h / 3
+  // from x^ = (4 x_n - x_n-1) / 3, v^ = (4 v_n - v_n-1) / 3, so each step solves the same system
+  // (the stiff terms, a contact layer included, in balance at its end, as backward Euler has
+  // them) and damps a resolved oscillation far less: per step at h omega = 1 (undamped) 0.93
+  // against backward Euler's 0.71. The state keeps the previous step (State::x_prev, v_prev).
+  bool bdf2 = false;
   double mass_damping = 0;  // 1/s: Rayleigh mass-proportional damping on all nodes
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
   double min_length_fraction = 0.05;                  // hard stop: no spring shorter than this x l0
@@ -372,7 +379,11 @@ struct RegionState {
 struct State {
   double time = 0;  // s
   std::uint64_t tick = 0;
-  std::vector<Vec3> x, v;          // (num_nodes) m, m/s
+  std::vector<Vec3> x, v;  // (num_nodes) m, m/s
+  // SolverOptions::bdf2: the state before the last step (sized by make_state when the model asks
+  // for BDF2, empty otherwise) and whether it is one (not after make_state or a rollback).
+  std::vector<Vec3> x_prev, v_prev;  // (num_nodes) m, m/s
+  bool has_prev = false;
   std::vector<double> maxwell;     // (num_springs) Maxwell dashpot deflection, card units
   std::vector<ProbeState> probes;  // (model.probes.size())
   std::vector<PlaneState> planes;  // (model.planes.size())

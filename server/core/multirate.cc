@@ -226,7 +226,8 @@ SystemFactor* LocalModelBuilder::last(Workspace& ws) {
 
 bool LocalModelBuilder::begin_refactor(const Model& m, State& s, Workspace& ws) {
   if (pending_.load(std::memory_order_acquire) != kNone) return false;
-  const double h = detail::substep_of(m);
+  // The system of the body's next step (BDF2: of its 2 / 3 step once the state has the last one).
+  const double h = detail::implicit_h(m, s);
   detail::prepare_system_at(m, s, ws, h);
   factor_->assemble(m, ws);
   // W's own factor: the tetrahedra's element terms with their exact Hessians, so that W is the
@@ -372,7 +373,7 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
   if (!same) {
     reg.w.resize(static_cast<size_t>(n3) * n3);
     (exact_ok_ ? exact_.get() : last(ws))->inverse_block(lm->nodes.data(), num, reg.w.data(), n3);
-    const double h2 = lm->h * lm->h;
+    const double hs = detail::implicit_h(m, s), h2 = hs * hs;
     for (double& v : reg.w) v *= h2;
     // W^-1 on the free axes (a fixed axis has a zero row and column in W), for the joint
     // solve's energy (haptic_contact).
@@ -408,12 +409,19 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
   // between hand-overs pushed a region at rest where the body's nodes were moving on, and rose
   // 2.8 times as steeply as the converged body's in the liver's early press, a sawtooth at the
   // body's rate that each hand-over cut back (docs/performance.md).
+  // A BDF2 step (backward Euler of step h' = 2h / 3 from x^, v^; core/implicit.cc) moves the body
+  // by A^-1 M ((1 + h' mu) (x^ - x) + h' v^) with no force changed (A is its system).
   for (int a = 0; a < num; ++a) lm->u_free[a].setZero();
   if (num > 0) {
     r_.assign(static_cast<size_t>(n), 0.0);
     z_.resize(std::max(z_.size(), static_cast<size_t>(n)));
-    for (int i = 0; i < nn; ++i)
-      for (int c = 0; c < 3; ++c) r_[c * nn + i] = lm->h * m.mass[i] * s.v[i][c];
+    const bool bdf2 = detail::bdf2_step(m, s);
+    const double hs = detail::implicit_h(m, s), mfac = 1 + hs * m.options.mass_damping;
+    for (int i = 0; i < nn; ++i) {
+      const Vec3 xh = bdf2 ? Vec3((s.x[i] - s.x_prev[i]) / 3.0) : Vec3::Zero();
+      const Vec3 vh = bdf2 ? Vec3((4.0 * s.v[i] - s.v_prev[i]) / 3.0) : s.v[i];
+      for (int c = 0; c < 3; ++c) r_[c * nn + i] = m.mass[i] * (mfac * xh[c] + hs * vh[c]);
+    }
     (exact_ok_ ? exact_.get() : last(ws))->solve_many(r_.data(), z_.data(), 1);
     for (int a = 0; a < num; ++a)
       for (int c = 0; c < 3; ++c) lm->u_free[a][c] = z_[c * nn + lm->nodes[a]];

@@ -122,6 +122,7 @@ StepStatus guard(const Model& m, State& s, Workspace& ws, bool partial) {
     std::copy(ws.good.x.begin(), ws.good.x.end(), s.x.begin());
   }
   std::fill(s.v.begin(), s.v.end(), Vec3::Zero());
+  s.has_prev = false;  // BDF2 starts again with backward Euler
   if (ws.layout.has_maxwell)
     std::copy(ws.good.maxwell.begin(), ws.good.maxwell.end(), s.maxwell.begin());
   for (size_t q = 0; q < s.planes.size() && q < ws.good.stick.size(); ++q)

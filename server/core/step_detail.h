@@ -21,6 +21,14 @@ namespace conica::detail {
 
 // Time step of one substep, s.
 inline double substep_of(const Model& m) { return m.options.dt / m.options.substeps; }
+// Whether the next implicit step from s is a BDF2 step (SolverOptions::bdf2 with the previous
+// step in the state), and the step its system is solved with: the substep, or 2 / 3 of it.
+inline bool bdf2_step(const Model& m, const State& s) {
+  return m.options.bdf2 && s.has_prev && s.x_prev.size() == s.x.size();
+}
+inline double implicit_h(const Model& m, const State& s) {
+  return bdf2_step(m, s) ? substep_of(m) * (2.0 / 3.0) : substep_of(m);
+}
 
 // The smallest room (length - min_length) of a set of springs is reduced as the int64 bit
 // patterns of the doubles: for rooms >= 0 their order is the doubles' order, any negative room

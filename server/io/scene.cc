@@ -445,6 +445,9 @@ Result<SceneFile> parse_scene(std::string_view text, const std::string& name,
   o.body_reach = s.body_reach();
   if (s.has_exact_compliance()) o.exact_compliance = s.exact_compliance();
   if (s.has_exact_tangent()) o.exact_tangent = s.exact_tangent();
+  if (s.has_bdf2()) o.bdf2 = s.bdf2();
+  if (o.bdf2 && o.integrator != Integrator::kImplicitEuler)
+    return Error{swhere + "bdf2 needs integrator IMPLICIT_EULER"};
   if (!(o.body_rate_hz >= 0) || o.body_rate_hz > rate || !(o.body_reach >= 0) ||
       !std::isfinite(o.body_reach))
     return Error{swhere + "body_rate_hz must be in [0, rate_hz] and body_reach >= 0 (m)"};

@@ -127,6 +127,7 @@ void set_solver(const SolverOptions& o, v1::Solver* out) {
   out->set_body_reach(o.body_reach);
   if (o.body_rate_hz > 0) out->set_exact_compliance(o.exact_compliance);
   if (o.integrator == Integrator::kImplicitEuler) out->set_exact_tangent(o.exact_tangent);
+  if (o.bdf2) out->set_bdf2(true);
   out->set_mass_damping(o.mass_damping);
   if (o.gravity.norm() > 0) set(o.gravity, out->mutable_gravity());
   out->set_min_length_fraction(o.min_length_fraction);

@@ -34,6 +34,7 @@ Curve quasi_static_curve(const Model& model, const LoadFn& load, const ReactionF
   so.gravity.setZero();
   so.max_speed = std::numeric_limits<double>::infinity();
   so.active_region = false;
+  so.bdf2 = false;                   // each step is one static Newton solve from rest: no history
   for (SpringGroup& g : m.groups) {  // elastic equilibrium: no rate terms
     g.card.damping = 0;
     g.card.maxwell_k = 0;

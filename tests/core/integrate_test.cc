@@ -134,6 +134,46 @@ TEST(IntegrateTest, ImplicitEulerStableAtHundredTimesTheExplicitLimit) {
   }
 }
 
+// A damped oscillator released from rest, m x'' + mu m x' + k x = 0 (a mass on a Hooke spring,
+// the scene's mass damping mu), integrated over two periods, against the analytic
+// x(t) = x0 exp(-mu t / 2) (cos w t + mu / (2 w) sin w t), w = sqrt(k / m - mu^2 / 4): the largest
+// error over the steps falls with the step as h for backward Euler and as h^2 for BDF2 (whose
+// first step is backward Euler's: an O(h^2) error that leaves the order as it is).
+TEST(IntegrateTest, Bdf2ConvergesAtSecondOrderBackwardEulerAtFirst) {
+  const double mass = 1e-3, omega0 = 100, mu = 20, l0 = 0.01, x0 = 1e-3;  // kg, 1/s, 1/s, m, m
+  const double w = std::sqrt(omega0 * omega0 - 0.25 * mu * mu);
+  const double T = 2 * 2 * M_PI / w;
+  auto exact = [&](double t) {
+    return x0 * std::exp(-0.5 * mu * t) * (std::cos(w * t) + 0.5 * mu / w * std::sin(w * t));
+  };
+  auto error = [&](bool bdf2, int n) {
+    const double h = T / n;
+    Model m = OneSpring(HookeCard(mass * omega0 * omega0), l0, mass, Integrator::kImplicitEuler, h);
+    m.options.bdf2 = bdf2;
+    m.options.mass_damping = mu;
+    m.options.newton_iterations = 1;  // linear: one Newton step solves the step
+    State s = make_state(m);
+    s.x[1].z() = l0 + x0;
+    Workspace ws(m);
+    double worst = 0;
+    for (int t = 1; t <= n; ++t) {
+      step(m, s, ws);
+      worst = std::max(worst, std::abs(s.x[1].z() - l0 - exact(t * h)));
+    }
+    EXPECT_EQ(s.counters.rollbacks, 0u);
+    return worst;
+  };
+  for (bool bdf2 : {false, true}) {
+    const double e1 = error(bdf2, 200), e2 = error(bdf2, 400), e3 = error(bdf2, 800);
+    std::printf("%s: largest errors %.3g %.3g %.3g m in 200, 400, 800 steps (ratios %.2f, %.2f)\n",
+                bdf2 ? "BDF2" : "backward Euler", e1, e2, e3, e1 / e2, e2 / e3);
+    const double order = bdf2 ? 4 : 2;
+    EXPECT_NEAR(e1 / e2, order, 0.1 * order) << bdf2;
+    EXPECT_NEAR(e2 / e3, order, 0.1 * order) << bdf2;
+  }
+  EXPECT_LT(error(true, 400), 0.05 * error(false, 400));
+}
+
 // Standard linear solid on one spring: k_e (Hooke) parallel to a Maxwell branch (k_m, tau).
 SpringCard Sls(double ke, double km, double tau) {
   SpringCard c = HookeCard(ke);

@@ -300,14 +300,30 @@ TEST_P(SurfaceMultirateTest, PressBetweenBodyStepsFeelsTheJointEquilibrium) {
 // handed-over state left them: measured 0.41 (hexahedra, Gauss-Newton W) and 0.17 (tetrahedra,
 // exact W) of the distance the region moved (2 um), asserted below half of it; without the free
 // motion the answer stays where the state left it (1.0).
-TEST_P(SurfaceMultirateTest, AnswersFollowTheBodysFreeMotion) {
-  PressedSurfaceBlock pb(GetParam());
+// bdf2: the body steps with BDF2 and the state holds a previous step that BDF2 reads as a
+// reversal (x_prev = x + 4 h v, v_prev = v), so that its free motion, A'^-1 M ((1 + h' mu)
+// (x^ - x) + h' v^) with h' = 2h / 3, x^ - x = -4 h v / 3 and v^ = v, is about -2/3 h v, against
+// backward Euler's +h v from the same state: an answer that took backward Euler's free motion, or
+// none, would be off by about the whole motion.
+void ExpectAnswersFollowTheFreeMotion(bool tets, bool bdf2) {
+  PressedSurfaceBlock pb(tets);
   ASSERT_TRUE(pb.built);
   double zmin = 1e300, zmax = -1e300;
   for (const Vec3& r : pb.m.rest) zmin = std::min(zmin, r.z()), zmax = std::max(zmax, r.z());
   for (int i = 0; i < pb.m.num_nodes(); ++i)
     pb.s.v[i] =
         pb.m.fixed[i] ? Vec3::Zero() : Vec3(0.01 * (pb.m.rest[i].z() - zmin) / (zmax - zmin), 0, 0);
+  if (bdf2) {
+    pb.m.options.bdf2 = pb.body.options.bdf2 = true;
+    pb.s.v_prev.resize(pb.s.v.size());
+    pb.s.x_prev.resize(pb.s.x.size());
+    for (int i = 0; i < pb.m.num_nodes(); ++i) {
+      pb.s.v_prev[i] = pb.s.v[i];
+      pb.s.x_prev[i] = pb.s.x[i] + 4 * kBodyStep * pb.s.v[i];
+    }
+    pb.s.has_prev = true;
+    ASSERT_TRUE(pb.builder.refactor(pb.body, pb.s, pb.ws));  // the factor of the 2h / 3 system
+  }
   ASSERT_TRUE(pb.builder.build(pb.body, pb.s, pb.ws, 0, 0.5 * kRadius, &pb.lm));
   const Vec3 c = pb.s.probes[0].center;
   State st = pb.s;
@@ -326,10 +342,18 @@ TEST_P(SurfaceMultirateTest, AnswersFollowTheBodysFreeMotion) {
     moved = std::max(moved, (st.x[i] - pb.s.x[i]).norm());
   }
   std::printf(
-      "region moved %.3g m in the body step; served off by %.3g m, the state left by %.3g m\n",
-      moved, served, still);
+      "%s: region moved %.3g m in the body step; served off by %.3g m, the state left by %.3g m\n",
+      bdf2 ? "BDF2" : "backward Euler", moved, served, still);
   ASSERT_GT(moved, 1e-6);
   EXPECT_LT(served, 0.5 * still);
+}
+
+TEST_P(SurfaceMultirateTest, AnswersFollowTheBodysFreeMotion) {
+  ExpectAnswersFollowTheFreeMotion(GetParam(), false);
+}
+
+TEST_P(SurfaceMultirateTest, AnswersFollowABdf2BodysFreeMotion) {
+  ExpectAnswersFollowTheFreeMotion(GetParam(), true);
 }
 
 // The device's stiffness is the derivative of the joint answer's force (central differences,

@@ -266,15 +266,17 @@ TEST(SceneTest, MultiRateServingIsReadAndChecked) {
     return std::string(kGood) + "probe { radius: 0.004 }\nsolver { " + solver + " }\n";
   };
   auto ok = parse_scene(with("integrator: IMPLICIT_EULER body_rate_hz: 50 body_reach: 0.002 "
-                             "newton_tolerance: 1e-6 refactor_every: 10"),
+                             "newton_tolerance: 1e-6 refactor_every: 10 bdf2: true"),
                         "s.pbtxt", kConfigs);
   ASSERT_TRUE(ok) << ok.error();
+  EXPECT_TRUE(ok.value().spec.options.bdf2);
   EXPECT_EQ(ok.value().spec.options.newton_tolerance, 1e-6);
   EXPECT_EQ(ok.value().spec.options.refactor_every, 10);
   EXPECT_EQ(ok.value().spec.options.body_rate_hz, 50);
   EXPECT_EQ(ok.value().spec.options.body_reach, 0.002);
   const std::pair<const char*, const char*> bad[] = {
       {"body_rate_hz: 50", "needs integrator IMPLICIT_EULER"},
+      {"bdf2: true", "bdf2 needs integrator IMPLICIT_EULER"},
       {"integrator: IMPLICIT_EULER body_rate_hz: 2000", "body_rate_hz must be in [0, rate_hz]"},
       {"integrator: IMPLICIT_EULER body_rate_hz: -1", "body_rate_hz must be in [0, rate_hz]"},
       {"integrator: IMPLICIT_EULER body_rate_hz: nan", "body_rate_hz must be in [0, rate_hz]"},
@@ -455,9 +457,13 @@ void ExpectSameScene(const SceneFile& a, const SceneFile& b, const std::string& 
   EXPECT_EQ(o.refactor_iterations, u.refactor_iterations) << where;
   EXPECT_EQ(o.body_rate_hz, u.body_rate_hz) << where;
   EXPECT_EQ(o.body_reach, u.body_reach) << where;
-  if (o.body_rate_hz > 0) EXPECT_EQ(o.exact_compliance, u.exact_compliance) << where;
-  if (o.integrator == Integrator::kImplicitEuler)
+  if (o.body_rate_hz > 0) {
+    EXPECT_EQ(o.exact_compliance, u.exact_compliance) << where;
+  }
+  if (o.integrator == Integrator::kImplicitEuler) {
     EXPECT_EQ(o.exact_tangent, u.exact_tangent) << where;
+  }
+  EXPECT_EQ(o.bdf2, u.bdf2) << where;
   EXPECT_EQ(o.mass_damping, u.mass_damping) << where;
   EXPECT_EQ(o.gravity, u.gravity) << where;
   EXPECT_EQ(o.min_length_fraction, u.min_length_fraction) << where;
