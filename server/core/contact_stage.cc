@@ -33,10 +33,9 @@ void list_contact_node(Workspace& ws, int i) {
 // forces to ws->force and, with the Jacobian, their scaled normals to ws->contact.n.
 void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
                         ProbeState* p, Workspace* ws, bool with_jacobian,
-                        const std::vector<int>* nodes) {
+                        const std::vector<int>* nodes, double h_system) {
   const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
-  // The implicit step's own h (BDF2: 2 / 3 of the substep) once it has begun.
-  const double h = ws && ws->system.h > 0 ? ws->system.h : detail::substep_of(m);
+  const double h = h_system > 0 ? h_system : detail::substep_of(m);
   p->force.setZero();
   p->stiffness.setZero();
   p->contacts = 0;
@@ -68,7 +67,7 @@ void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const
 void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                     const std::vector<int>* nodes) {
   const int nn = nodes ? static_cast<int>(nodes->size()) : m.num_nodes();
-  const double h = ws.system.h > 0 ? ws.system.h : detail::substep_of(m);
+  const double h = detail::implicit_h(m, s);  // the implicit system's step (BDF2: 2h / 3)
   for (int q = 0; q < ws.contact.num_nodes; ++q) {
     const int i = ws.contact.nodes[q];
     ws.contact.n[i].setZero();
@@ -82,7 +81,7 @@ void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
     if (m.probes[q].contact == ContactModel::kNodes) {
       ProbeState& p = s.probes[q];
       if (p.active) {
-        node_probe_contact(m, s.x, static_cast<int>(q), p.center, &p, &ws, with_jacobian, nodes);
+        node_probe_contact(m, s.x, static_cast<int>(q), p.center, &p, &ws, with_jacobian, nodes, h);
       } else {
         p.force.setZero();
         p.stiffness.setZero();

@@ -506,7 +506,6 @@ void prepare_tangent(const Model& m, const State& s, Workspace& ws, double h2) {
 
 void prepare_system_at(const Model& m, State& s, Workspace& ws, double h) {
   const int nn = m.num_nodes();
-  ws.system.h = h;
   const double mfac = 1.0 + h * m.options.mass_damping;
   for (int i = 0; i < nn; ++i) ws.system.mass[i] = m.mass[i] * mfac;
   evaluate_forces(m, s, ws, true);
@@ -584,8 +583,6 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
     }
     s.x[i] = ws.system.x0[i] + h * ws.system.v0[i].cwiseProduct(m.free_axes[i]);  // predictor
   }
-  s.has_prev = m.options.bdf2 && s.x_prev.size() == s.x.size();
-  ws.system.h = h;
   hard_stop(m, s, ws);  // the predictor must not cross solid height either
   const double mfac = 1.0 + h * m.options.mass_damping;
   for (int i = 0; i < nn; ++i) ws.system.mass[i] = m.mass[i] * mfac;
@@ -653,6 +650,8 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
   }
   for (int i = 0; i < nn; ++i)
     s.v[i] = ((s.x[i] - ws.system.x0[i]) / h).cwiseProduct(m.free_axes[i]);
+  // The next step has this one as its previous (x_prev, v_prev were set above).
+  s.has_prev = m.options.bdf2 && s.x_prev.size() == s.x.size();
 }
 
 }  // namespace

@@ -210,8 +210,6 @@ struct ContactScratch {
 // (00 11 22 01 02 12).
 struct SystemScratch {
   std::vector<double> alpha, beta;           // (num_springs) system coefficients
-  double h = 0;                              // s, the step of the system being solved (BDF2:
-                                             // 2 / 3 of the substep; 0 before the first)
   double h2 = 0;                             // s^2, h^2 of the system being solved
   std::vector<Vec3> x0, v0;                  // (num_nodes) state at the step's start
   std::vector<Vec3> x_base;                  // (num_nodes) a Newton iterate being backtracked

@@ -103,10 +103,11 @@ void spring_forces(const Model& m, const State& s, Workspace& ws, bool keep);
 // Contact (contact_stage.cc).
 // The node law of probe k at `center` against positions x (every node or the listed ones):
 // the probe's force, stiffness and contacts; with a workspace also the nodes' forces and, with
-// the Jacobian, their scaled normals.
+// the Jacobian, their scaled normals (for the implicit system of step h_system, s; 0: the
+// substep).
 void node_probe_contact(const Model& m, const std::vector<Vec3>& x, int k, const Vec3& center,
                         ProbeState* p, Workspace* ws = nullptr, bool with_jacobian = false,
-                        const std::vector<int>* nodes = nullptr);
+                        const std::vector<int>* nodes = nullptr, double h_system = 0);
 // Probes and planes against the body: forces into ws.force, layer blocks, plane normals.
 void contact_forces(const Model& m, State& s, Workspace& ws, bool with_jacobian,
                     const std::vector<int>* nodes = nullptr);

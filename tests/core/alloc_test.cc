@@ -25,56 +25,60 @@ long AllocationsDuring(F&& f) {
 TEST(AllocationTest, StepAllocatesNothing) {
   for (Integrator integ :
        {Integrator::kSymplecticEuler, Integrator::kExplicitEuler, Integrator::kImplicitEuler})
-    for (double kappa : {0.0, 2e4}) {  // Pa: without and with volume, spread and shear stiffness
-      BodySpec b;
-      b.bulk_modulus = kappa;
-      b.spread_modulus = kappa;
-      b.shear_modulus = kappa / 4;
-      b.mesh = make_box_lattice(Vec3(0.04, 0.04, 0.02), {4, 4, 2});
-      SpringCard conical;
-      conical.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};
-      conical.stiffness_cap = 20;
-      conical.damping = 0.01;
-      conical.maxwell_k = 20;
-      conical.maxwell_tau = 0.1;
-      SpringCard hooke;
-      hooke.law = LawKind::kHooke;
-      hooke.hooke_k = 40;
-      hooke.hooke_length = 0.01;
-      b.groups.push_back({"edges", hooke, kEdge, {}, Vec3::Zero(), 10});
-      b.groups.push_back({"rest", conical, kAllFamilies, {}, Vec3::Zero(), 10});
-      FixedSelector base;
-      base.kind = FixedSelector::Kind::kPlane;
-      b.fixed.push_back(base);
-      b.options.integrator = integ;
-      b.options.substeps = 2;
-      b.options.mass_damping = 5;
-      b.probes.push_back(ProbeSpec{0.006, 0, ContactModel::kNodes});
-      PlaneSpec side;
-      side.normal = Vec3::UnitX();
-      side.offset = 0.001;  // touches the x = 0 face
-      b.planes.push_back(side);
-      Model m;
-      ASSERT_EQ(build_model(b, &m), "");
-      State s = make_state(m);
-      Workspace ws(m);
-      set_probe(s, 0, Vec3(0.02, 0.02, 0.023));
-      for (int i = 0; i < 20; ++i) step(m, s, ws);  // warm up
-      int contact_steps = 0;
-      const long allocations = AllocationsDuring([&] {
-        for (int i = 0; i < 100; ++i) {
-          set_probe(s, 0, Vec3(0.02, 0.02, 0.023 - 1e-5 * i));
-          step(m, s, ws);
-          contact_steps += s.probes[0].contacts > 0;
-        }
-        compute_forces(m, s, ws);
-      });
-      EXPECT_EQ(allocations, 0) << integrator_name(integ) << ", bulk modulus " << kappa;
-      EXPECT_GT(contact_steps, 0) << integrator_name(integ);  // the contact stage did run
-      EXPECT_GT(s.planes[0].contacts, 0);
-      // The check itself works: a vector growing while counting is seen.
-      EXPECT_GT(AllocationsDuring([] { std::vector<double> grow(100); }), 0);
-    }
+    for (double kappa : {0.0, 2e4})  // Pa: without and with volume, spread and shear stiffness
+      for (bool bdf2 : {false, true}) {
+        if (bdf2 && integ != Integrator::kImplicitEuler) continue;
+        BodySpec b;
+        b.bulk_modulus = kappa;
+        b.spread_modulus = kappa;
+        b.shear_modulus = kappa / 4;
+        b.mesh = make_box_lattice(Vec3(0.04, 0.04, 0.02), {4, 4, 2});
+        SpringCard conical;
+        conical.conical = ConicalCard{2e8, 1e-3, 2e-3, 8e-3, 10e-3, 3};
+        conical.stiffness_cap = 20;
+        conical.damping = 0.01;
+        conical.maxwell_k = 20;
+        conical.maxwell_tau = 0.1;
+        SpringCard hooke;
+        hooke.law = LawKind::kHooke;
+        hooke.hooke_k = 40;
+        hooke.hooke_length = 0.01;
+        b.groups.push_back({"edges", hooke, kEdge, {}, Vec3::Zero(), 10});
+        b.groups.push_back({"rest", conical, kAllFamilies, {}, Vec3::Zero(), 10});
+        FixedSelector base;
+        base.kind = FixedSelector::Kind::kPlane;
+        b.fixed.push_back(base);
+        b.options.integrator = integ;
+        b.options.bdf2 = bdf2;
+        b.options.substeps = 2;
+        b.options.mass_damping = 5;
+        b.probes.push_back(ProbeSpec{0.006, 0, ContactModel::kNodes});
+        PlaneSpec side;
+        side.normal = Vec3::UnitX();
+        side.offset = 0.001;  // touches the x = 0 face
+        b.planes.push_back(side);
+        Model m;
+        ASSERT_EQ(build_model(b, &m), "");
+        State s = make_state(m);
+        Workspace ws(m);
+        set_probe(s, 0, Vec3(0.02, 0.02, 0.023));
+        for (int i = 0; i < 20; ++i) step(m, s, ws);  // warm up
+        int contact_steps = 0;
+        const long allocations = AllocationsDuring([&] {
+          for (int i = 0; i < 100; ++i) {
+            set_probe(s, 0, Vec3(0.02, 0.02, 0.023 - 1e-5 * i));
+            step(m, s, ws);
+            contact_steps += s.probes[0].contacts > 0;
+          }
+          compute_forces(m, s, ws);
+        });
+        EXPECT_EQ(allocations, 0) << integrator_name(integ) << ", bulk modulus " << kappa
+                                  << (bdf2 ? ", BDF2" : "");
+        EXPECT_GT(contact_steps, 0) << integrator_name(integ);  // the contact stage did run
+        EXPECT_GT(s.planes[0].contacts, 0);
+        // The check itself works: a vector growing while counting is seen.
+        EXPECT_GT(AllocationsDuring([] { std::vector<double> grow(100); }), 0);
+      }
 }
 
 // Surface tools: a bonded punch pressed and lifted, a plane pressed, every integrator: the proxy

@@ -1,7 +1,7 @@
 // State is the whole dynamic state: a copy taken mid-run and stepped again with the same inputs,
 // with a fresh Workspace or with the one that has already stepped past it, gives bit-identical
 // states, with every option on (active region, multi-rate or frozen far field, Maxwell branches,
-// surface contact with friction and node contact, volume and shear terms, each integrator).
+// surface contact with friction and node contact, volume and shear terms, each integrator, BDF2).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -32,8 +32,9 @@ struct Config {
   bool tetrahedra;
   Integrator integrator;
   bool region;
-  int far_every;  // options.active_far_every
-  bool elements;  // bulk and shear terms
+  int far_every;      // options.active_far_every
+  bool elements;      // bulk and shear terms
+  bool bdf2 = false;  // options.bdf2 (implicit)
 };
 
 Model Build(const Config& c) {
@@ -51,6 +52,7 @@ Model Build(const Config& c) {
   b.options.active_region = c.region;
   b.options.active_tolerance = 3e-3;  // m: a soft card, a coarse tolerance
   b.options.active_far_every = c.far_every;
+  b.options.bdf2 = c.bdf2;
   if (c.integrator == Integrator::kImplicitEuler) {
     b.options.newton_iterations = 1;
     b.options.cg_iterations = 20;
@@ -99,6 +101,8 @@ void ExpectIdentical(const State& a, const State& b, const char* what) {
   EXPECT_TRUE(Same(a.x, b.x)) << what << ": positions differ";
   EXPECT_TRUE(Same(a.v, b.v)) << what << ": velocities differ";
   EXPECT_TRUE(Same(a.maxwell, b.maxwell)) << what << ": Maxwell branches differ";
+  EXPECT_TRUE(Same(a.x_prev, b.x_prev) && Same(a.v_prev, b.v_prev) && a.has_prev == b.has_prev)
+      << what << ": BDF2's previous step differs";
   for (size_t k = 0; k < a.probes.size(); ++k) {
     EXPECT_EQ(std::memcmp(a.probes[k].force.data(), b.probes[k].force.data(), sizeof(Vec3)), 0)
         << what << ": probe " << k << " force";
@@ -171,7 +175,8 @@ INSTANTIATE_TEST_SUITE_P(
         Config{"tets_symplectic_multirate", true, Integrator::kSymplecticEuler, true, 0, false},
         Config{"tets_symplectic_elements", true, Integrator::kSymplecticEuler, false, 0, true},
         Config{"tets_implicit_elements", true, Integrator::kImplicitEuler, false, 0, true},
-        Config{"lattice_implicit", false, Integrator::kImplicitEuler, false, 0, false}),
+        Config{"lattice_implicit", false, Integrator::kImplicitEuler, false, 0, false},
+        Config{"tets_bdf2_elements", true, Integrator::kImplicitEuler, false, 0, true, true}),
     [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace
