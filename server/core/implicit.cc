@@ -448,7 +448,7 @@ int solve(const Model& m, Workspace& ws) {
 int solve_factored(const Model& m, Workspace& ws, SystemFactor& factor) {
   const int n3 = 3 * m.num_nodes();
   return pcg(m, ws, [n3, &factor](const double* r, double* z) {
-    factor.solve(r, z);
+    factor.precondition(r, z);
     return dot(n3, r, z);
   });
 }

@@ -260,6 +260,14 @@ bool SystemFactor::factorize() {
   // solve() reads a simplicial LDL^T factor in place (the analysis asked for one), or solves
   // with a supernodal one through CHOLMOD.
   factored_ = factored_ && (c_->L->is_super || !c_->L->is_ll);
+  // The preconditioner's copy of a supernodal factor in single precision (precondition()).
+  if (factored_ && c_->L->is_super) {
+    const auto* lx = static_cast<const double*>(c_->L->x);
+    lxf_.resize(c_->L->xsize);
+    for (size_t q = 0; q < c_->L->xsize; ++q) lxf_[q] = static_cast<float>(lx[q]);
+    xf_.resize(3 * static_cast<size_t>(nn_));
+    tf_.resize(static_cast<size_t>(max_nsrow_));
+  }
   return factored_;
 }
 
@@ -310,28 +318,32 @@ void SystemFactor::solve_many(const double* r, double* z, int k) {
 namespace {
 // Right-hand sides of a supernodal sweep, k per row of the permuted system (row-major), a plain
 // vector when there is one (Eigen's vector kernels: about 10 % faster solves than k = 1 rows).
-template <int Cols>
+template <int Cols, typename Scalar = double>
 using Rhs =
-    Eigen::Matrix<double, Eigen::Dynamic, Cols, Cols == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
+    Eigen::Matrix<Scalar, Eigen::Dynamic, Cols, Cols == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
 
 // The supernodal factor's columns of supernode s: nsrow x nscol, column-major at px[s], rows
 // Ls[pi[s]..pi[s + 1]) (the first nscol its own columns).
+// Scalar float: the values of a single-precision copy (lx).
+template <typename Scalar = double>
 struct Supernodes {
+  using Scalar_ = Scalar;
   const int *super, *pi, *px, *ls;
-  const double* lx;
+  const Scalar* lx;
   size_t count;
-  explicit Supernodes(const cholmod_factor* L)
+  explicit Supernodes(const cholmod_factor* L, const Scalar* values = nullptr)
       : super(static_cast<const int*>(L->super)),
         pi(static_cast<const int*>(L->pi)),
         px(static_cast<const int*>(L->px)),
         ls(static_cast<const int*>(L->s)),
-        lx(static_cast<const double*>(L->x)),
+        lx(values ? values : reinterpret_cast<const Scalar*>(L->x)),
         count(L->nsuper) {}
   int first(size_t s) const { return super[s]; }
   int cols(size_t s) const { return super[s + 1] - super[s]; }
   int below(size_t s) const { return pi[s + 1] - pi[s] - cols(s); }
   const int* rows_below(size_t s) const { return ls + pi[s] + cols(s); }
-  Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> block(size_t s) const {
+  Eigen::Map<const Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic>, 0, Eigen::OuterStride<>>
+  block(size_t s) const {
     const int ld = pi[s + 1] - pi[s];
     return {lx + px[s], ld, cols(s), Eigen::OuterStride<>(ld)};
   }
@@ -340,8 +352,8 @@ struct Supernodes {
 // L Y = Y in place (x: k entries per row; t: scratch of the largest supernode's rows below times
 // k). With `live` (a flag per row, set where Y can be nonzero), supernodes whose rows are all
 // zero are skipped and the flags follow the rows each sweep fills.
-template <int Cols>
-void forward_sweep(const Supernodes& L, double* x, double* t, int k, char* live = nullptr) {
+template <int Cols, typename Scalar = double>
+void forward_sweep(const Supernodes<Scalar>& L, Scalar* x, Scalar* t, int k, char* live = nullptr) {
   for (size_t s = 0; s < L.count; ++s) {
     const int k1 = L.first(s), nscol = L.cols(s), below = L.below(s);
     if (live) {
@@ -349,15 +361,15 @@ void forward_sweep(const Supernodes& L, double* x, double* t, int k, char* live 
       std::fill(live + k1, live + k1 + nscol, 1);  // the diagonal block's solve fills them
     }
     const auto Ls = L.block(s);
-    Eigen::Map<Rhs<Cols>> X1(x + static_cast<size_t>(k1) * k, nscol, k);
+    Eigen::Map<Rhs<Cols, Scalar>> X1(x + static_cast<size_t>(k1) * k, nscol, k);
     Ls.topRows(nscol).template triangularView<Eigen::Lower>().solveInPlace(X1);
     if (below == 0) continue;
-    Eigen::Map<Rhs<Cols>> T(t, below, k);
+    Eigen::Map<Rhs<Cols, Scalar>> T(t, below, k);
     T.noalias() = Ls.bottomRows(below) * X1;
     const int* rows = L.rows_below(s);
     for (int q = 0; q < below; ++q) {
-      double* xr = x + static_cast<size_t>(rows[q]) * k;
-      const double* tr = t + static_cast<size_t>(q) * k;
+      Scalar* xr = x + static_cast<size_t>(rows[q]) * k;
+      const Scalar* tr = t + static_cast<size_t>(q) * k;
       for (int c = 0; c < k; ++c) xr[c] -= tr[c];
       if (live) live[rows[q]] = 1;
     }
@@ -365,17 +377,18 @@ void forward_sweep(const Supernodes& L, double* x, double* t, int k, char* live 
 }
 
 // L^T X = X in place (as forward_sweep, without skipping).
-template <int Cols>
-void backward_sweep(const Supernodes& L, double* x, double* t, int k) {
+template <int Cols, typename Scalar = double>
+void backward_sweep(const Supernodes<Scalar>& L, Scalar* x, Scalar* t, int k) {
   for (size_t s = L.count; s-- > 0;) {
     const int k1 = L.first(s), nscol = L.cols(s), below = L.below(s);
     const auto Ls = L.block(s);
-    Eigen::Map<Rhs<Cols>> X1(x + static_cast<size_t>(k1) * k, nscol, k);
+    Eigen::Map<Rhs<Cols, Scalar>> X1(x + static_cast<size_t>(k1) * k, nscol, k);
     if (below > 0) {
       const int* rows = L.rows_below(s);
       for (int q = 0; q < below; ++q)
         std::copy_n(x + static_cast<size_t>(rows[q]) * k, k, t + static_cast<size_t>(q) * k);
-      X1.noalias() -= Ls.bottomRows(below).transpose() * Eigen::Map<const Rhs<Cols>>(t, below, k);
+      X1.noalias() -=
+          Ls.bottomRows(below).transpose() * Eigen::Map<const Rhs<Cols, Scalar>>(t, below, k);
     }
     Ls.topRows(nscol).transpose().template triangularView<Eigen::Upper>().solveInPlace(X1);
   }
@@ -399,7 +412,7 @@ void SystemFactor::supernodal_solve(const double* r, double* z, int k) {
       const double f = free_[c * nn + i];
       for (int q = 0; q < k; ++q) xr[q] = r[static_cast<size_t>(q) * n + c * nn + i] * f;
     }
-  const Supernodes L(c_->L);
+  const Supernodes<> L(c_->L);
   if (k == 1) {
     forward_sweep<1>(L, x_.data(), t_.data(), 1);
     backward_sweep<1>(L, x_.data(), t_.data(), 1);
@@ -413,6 +426,26 @@ void SystemFactor::supernodal_solve(const double* r, double* z, int k) {
       const double f = free_[c * nn + i];
       for (int q = 0; q < k; ++q) z[static_cast<size_t>(q) * n + c * nn + i] = xr[q] * f;
     }
+}
+
+// supernodal_solve's sweeps on the single-precision copy of the factor: half the memory each
+// sweep reads (the solve is bound by it), for a preconditioner whose own error (a factor some
+// body steps old) is far above single precision's 6e-8.
+void SystemFactor::precondition(const double* r, double* z) {
+  if (!c_->L->is_super || lxf_.size() != c_->L->xsize) {
+    solve(r, z);
+    return;
+  }
+  const int nn = nn_;
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c)
+      xf_[iperm_[3 * i + c]] = static_cast<float>(r[c * nn + i] * free_[c * nn + i]);
+  const Supernodes<float> L(c_->L, lxf_.data());
+  forward_sweep<1, float>(L, xf_.data(), tf_.data(), 1);
+  backward_sweep<1, float>(L, xf_.data(), tf_.data(), 1);
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c)
+      z[c * nn + i] = static_cast<double>(xf_[iperm_[3 * i + c]]) * free_[c * nn + i];
 }
 
 void SystemFactor::inverse_block(const int* nodes, int num, double* w, int ld) {
@@ -446,7 +479,7 @@ void SystemFactor::inverse_block(const int* nodes, int num, double* w, int ld) {
   }
   if (t_.size() < static_cast<size_t>(max_nsrow_) * k)
     t_.resize(static_cast<size_t>(max_nsrow_) * k);
-  forward_sweep<Eigen::Dynamic>(Supernodes(L), y_.data(), t_.data(), k, live_.data());
+  forward_sweep<Eigen::Dynamic>(Supernodes<>(L), y_.data(), t_.data(), k, live_.data());
   // W = Y^T Y over Y's live rows, gathered.
   int m = 0;
   for (int row = 0; row < n; ++row)

@@ -64,6 +64,9 @@ class SystemFactor {
   // The same for k right-hand sides at once (r and z: k such vectors one after the other), in
   // one pass of the supernodal solve (allocates its scratch at a larger k).
   void solve_many(const double* r, double* z, int k);
+  // z ~ A_f^-1 r for a preconditioner: a supernodal factor's sweeps in single precision (a copy
+  // of its values made at factorize()), otherwise solve(). No allocation.
+  void precondition(const double* r, double* z);
   // The block of A_f^-1 over the given nodes' 3 num axes (node a's axis c at row and column
   // 3 a + c), into w (column-major, leading dimension ld >= 3 num): zero rows and columns on
   // fixed axes. With a supernodal factor P A_f P^T = L L^T it is Y^T Y, Y = L^-1 P E (E the
@@ -100,6 +103,8 @@ class SystemFactor {
   std::vector<double> y_, t_;        // inverse_block's scratch: Y (row-major) and an update
   std::vector<double> x_;            // the supernodal solve's right-hand sides (row-major)
   int max_nsrow_ = 0;                // the supernodes' largest row count
+  std::vector<float> lxf_;           // a supernodal factor's values in single precision
+  std::vector<float> xf_, tf_;       // precondition()'s right-hand side and update
   void supernodal_solve(const double* r, double* z, int k);
   std::vector<char> live_;  // (3 num_nodes) rows of Y that can be nonzero
   std::unique_ptr<Cholmod> c_;

@@ -213,6 +213,58 @@ TEST_P(SparseSystemTest, FactorSolveInvertsTheMatrixFreeSystemLikeADenseSolve) {
       }
 }
 
+// The preconditioner's single-precision sweeps of a supernodal factor against the dense solve:
+// within a few ulps of single precision times A's condition where the solve is within 1e-9,
+// zero on fixed axes; a simplicial factor's precondition() is its solve().
+TEST_P(SparseSystemTest, SinglePrecisionPreconditionerIsTheDenseSolveToSinglePrecision) {
+  const Model m = Block(GetParam());
+  State s = Pressed(m);
+  Workspace ws(m);
+  const int nn = m.num_nodes(), n3 = 3 * nn;
+  std::vector<int> free;
+  const Eigen::MatrixXd A = DenseSystem(m, s, ws, &free);
+  const int nf = static_cast<int>(free.size());
+  const std::vector<double> r = Random(m, 11);
+  Eigen::VectorXd rf(nf);
+  for (int q = 0; q < nf; ++q) rf[q] = r[free[q]];
+  const Eigen::VectorXd zd = A.ldlt().solve(rf);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A, Eigen::EigenvaluesOnly);
+  const double cond = eig.eigenvalues().maxCoeff() / eig.eigenvalues().minCoeff();
+  for (SystemFactor::Kind kind :
+       {SystemFactor::Kind::kSupernodal, SystemFactor::Kind::kSimplicial}) {
+    const bool super = kind == SystemFactor::Kind::kSupernodal;
+    SystemFactor f(m, kind);
+    detail::prepare_system_at(m, s, ws, m.options.dt);
+    f.assemble(m, ws);
+    ASSERT_TRUE(f.factorize());
+    std::vector<double> z(n3, -1.0), zs(n3, -1.0);
+    f.precondition(r.data(), z.data());
+    f.solve(r.data(), zs.data());
+    double err = 0, err_solve = 0;
+    for (int q = 0; q < nf; ++q) {
+      err = std::max(err, std::abs(z[free[q]] - zd[q]));
+      err_solve = std::max(err_solve, std::abs(zs[free[q]] - zd[q]));
+    }
+    const double scale = zd.cwiseAbs().maxCoeff();
+    std::printf(
+        "%s: precondition() within %.3g of the dense solve, solve() within %.3g (relative; "
+        "A's condition %.3g)\n",
+        super ? "supernodal" : "simplicial", err / scale, err_solve / scale, cond);
+    EXPECT_LT(err_solve, 1e-9 * scale);
+    if (super) {
+      EXPECT_LT(err, 1e-6 * cond * scale);  // single precision: 6e-8 per operation
+      EXPECT_GT(err, err_solve);            // and it is single precision
+    } else {
+      EXPECT_EQ(z, zs);
+    }
+    for (int i = 0; i < nn; ++i)
+      for (int c = 0; c < 3; ++c)
+        if (!m.free_axes[i][c]) {
+          EXPECT_EQ(z[c * nn + i], 0.0);
+        }
+  }
+}
+
 // The block of A^-1 over a few nodes (a corner node with fixed axes among them), as the
 // multi-rate body's local compliance takes it, against the dense inverse: the supernodal
 // factor's pruned forward solve and the simplicial factor's full solves.
