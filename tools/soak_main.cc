@@ -759,6 +759,7 @@ int main(int argc, char** argv) {
   // Sample once per second until the end (or a signal); a progress line every 60 s.
   int signal_number = 0;
   long rss_start = -1;
+  double warm_at = 0;  // s since the run began, when the warm-up's sample was taken
   Heap heap_start;
   long heap_peak_in_use = 0;
   conica::net::LoopStatsData s_start;
@@ -785,6 +786,7 @@ int main(int argc, char** argv) {
     if (signal_number != 0) break;
     const auto t = Clock::now();
     if (rss_start < 0 && t >= warm) {
+      warm_at = std::chrono::duration<double>(t - t0).count();
       rss_start = rss_kib();
       heap_start = heap_kib();
       s_start = server.stats();
@@ -884,6 +886,7 @@ int main(int argc, char** argv) {
     }
   }
   if (rss_start < 0) {  // interrupted before the warm-up ended
+    warm_at = std::chrono::duration<double>(Clock::now() - t0).count();
     rss_start = rss_kib();
     heap_start = heap_kib();
     s_start = server.stats();
@@ -949,8 +952,9 @@ int main(int argc, char** argv) {
                 reference->fifo() ? "SCHED_FIFO" : "normal priority", reference->missed(),
                 reference->ticks() + reference->missed(), reference->percentile_us(0.5),
                 reference->percentile_us(0.99), reference->run_max_us());
-  std::printf("rss: launch %ld KiB, after warm-up %ld KiB (tick %" PRIu64 "), end %ld KiB\n",
-              rss_launch, rss_start, s_start.ticks, rss_end);
+  std::printf("rss: launch %ld KiB, after warm-up %ld KiB (tick %" PRIu64
+              ", %.1f s into the run), end %ld KiB\n",
+              rss_launch, rss_start, s_start.ticks, warm_at, rss_end);
   std::printf(
       "heap (malloc): in use %ld KiB after warm-up, %ld KiB at the end, %ld KiB at most "
       "(sampled each second); held from the system %ld -> %ld KiB\n",

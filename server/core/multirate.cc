@@ -170,8 +170,6 @@ LocalModel::LocalModel(int cap)
       winv(9 * static_cast<size_t>(cap) * cap, 0.0),
       f(cap, Vec3::Zero()),
       dx(cap, Vec3::Zero()),
-      u_free(cap, Vec3::Zero()),
-      wu(3 * static_cast<size_t>(cap), 0.0),
       dx_last(cap, Vec3::Zero()),
       step(cap, Vec3::Zero()),
       dfdc(cap, Mat3::Zero()),
@@ -186,7 +184,9 @@ LocalModel::LocalModel(int cap)
       held_count(cap, 0),
       held_node(static_cast<size_t>(kMaxCoupled) * cap, -1),
       held(static_cast<size_t>(kMaxCoupled) * cap, Mat3::Zero()),
-      hb(cap, Vec3::Zero()) {}
+      hb(cap, Vec3::Zero()),
+      u_free(cap, Vec3::Zero()),
+      wu(3 * static_cast<size_t>(cap), 0.0) {}
 
 SurfaceScratch::SurfaceScratch(const Model& m)
     : candidates(m.probes.size(), ContactCandidates(m)),

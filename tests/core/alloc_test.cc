@@ -110,7 +110,9 @@ TEST(AllocationTest, SurfaceToolStepAllocatesNothing) {
       });
       EXPECT_EQ(allocations, 0) << integrator_name(integ) << " shape " << static_cast<int>(shape);
       EXPECT_GT(contact_steps, 0) << integrator_name(integ);
-      if (p.bonded) EXPECT_GT(s.probes[0].bonded.size(), 1u) << integrator_name(integ);
+      if (p.bonded) {
+        EXPECT_GT(s.probes[0].bonded.size(), 1u) << integrator_name(integ);
+      }
     }
 }
 

@@ -106,8 +106,9 @@ TEST(ToolContactTest, ForceAndStiffnessAreTheEnergyDerivatives) {
         // The punch pushes along its axis only: its footprint's sharp rim also changes the
         // energy as it slides sideways over a sloped surface, a rim term it leaves out. A plane
         // has no rim: sliding along its face leaves its energy as it is.
-        if (shape != ToolShape::kPunch || a == 2)
+        if (shape != ToolShape::kPunch || a == 2) {
           EXPECT_NEAR(-dE, at.force[a], 1e-3 * at.force.norm()) << "R " << R << " axis " << a;
+        }
         if (shape != ToolShape::kPunch) {
           const Vec3 dF = (p.force - q.force) / (2 * h);
           EXPECT_NEAR((dF - at.stiffness.col(a)).norm(), 0.0, 2e-3 * at.stiffness.norm())
@@ -489,7 +490,9 @@ TEST(SurfaceContactTest, SmallProbeAtAFaceCentreIsFeltFromTheStartAndHoldsSteady
       if (first < 0 && f > 0) first = d;
       // The sphere reaches into the rest surface from d > 0 on: a tick with no force there is
       // the failure this test is about.
-      if (d > 1e-4) ASSERT_GT(f, 0) << integrator_name(integ) << " tool depth " << d;
+      if (d > 1e-4) {
+        ASSERT_GT(f, 0) << integrator_name(integ) << " tool depth " << d;
+      }
       worst_inside = std::max(worst_inside, s.probes[0].depth);
       if (t > press + hold / 2) {
         hold_sum += f;

@@ -454,7 +454,9 @@ TEST_P(SparseSystemTest, NewtonToleranceStopsAtTheConvergedStep) {
         d_one, d_one_exact);
     EXPECT_LT(d_early, 1e-8) << factor;
     EXPECT_GT(d_one, 10 * 1e-8) << factor;  // the comparison can tell an unconverged step
-    if (GetParam()) EXPECT_LT(d_one_exact, 0.1 * d_one) << factor;  // tetrahedra
+    if (GetParam()) {                       // tetrahedra
+      EXPECT_LT(d_one_exact, 0.1 * d_one) << factor;
+    }
   }
 }
 

@@ -294,7 +294,9 @@ TEST(VolumeTest, ImplicitStepHoldsAConfinedPressureAtTheBulkModulus) {
     if (m.rest[i].z() > H - 1e-9) top += ws.force[i].z();
   // Interior nodes are in equilibrium, the top carries the stress.
   for (int i = 0; i < m.num_nodes(); ++i)
-    if (m.fixed[i] == 0) EXPECT_LT(ws.force[i].norm(), 1e-6 * kappa * e * H * H) << i;
+    if (m.fixed[i] == 0) {
+      EXPECT_LT(ws.force[i].norm(), 1e-6 * kappa * e * H * H) << i;
+    }
   Model springs_only = m;
   springs_only.bulk_modulus = 0;
   Workspace ws0(springs_only);
@@ -358,7 +360,9 @@ TEST(VolumeTest, ImplicitStepFindsTheEquilibriumOfAShearedBlockWithEveryElementT
   for (int k = 0; k < 10; ++k) step(m, s, ws);
   compute_forces(m, s, ws);
   for (int i = 0; i < m.num_nodes(); ++i)
-    if (m.fixed[i] == 0) EXPECT_LT(ws.force[i].norm(), 1e-8 * mu * gamma * H * H) << i;
+    if (m.fixed[i] == 0) {
+      EXPECT_LT(ws.force[i].norm(), 1e-8 * mu * gamma * H * H) << i;
+    }
 }
 
 }  // namespace conica

@@ -38,7 +38,9 @@ TEST(ProbeContactTest, MatchesTheStepContactStage) {
       compute_forces(m, s, ws);  // the step's proxy and contact stages fill s.probes[0]
       probe_contact(m, s, 0, c, 0, &mine);
       const char* name = model == ContactModel::kSurface ? "surface" : "nodes";
-      if (c.z() < 0.0425) EXPECT_GT(mine.contacts, 0) << name;  // deeper than the press: touches
+      if (c.z() < 0.0425) {  // deeper than the press: touches
+        EXPECT_GT(mine.contacts, 0) << name;
+      }
       EXPECT_EQ(mine.contacts, s.probes[0].contacts) << name;
       EXPECT_TRUE(mine.force.isApprox(s.probes[0].force, 1e-12) ||
                   (mine.force.norm() == 0 && s.probes[0].force.norm() == 0))
