@@ -567,6 +567,7 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
   // BDF2 (SolverOptions::bdf2): backward Euler of step 2h / 3 from x^ = (4 x_n - x_n-1) / 3 and
   // v^ = (4 v_n - v_n-1) / 3; x0, v0 and h below are those.
   const bool bdf2 = bdf2_step(m, s);
+  const bool keep_prev = m.options.bdf2 && s.x_prev.size() == s.x.size();
   const double h = implicit_h(m, s);
   const int nn = m.num_nodes(), ns = m.num_springs();
   for (int i = 0; i < nn; ++i) {
@@ -574,10 +575,10 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
     ws.system.v0[i] = s.v[i];
     if (bdf2) {  // on free axes: a fixed axis keeps its position (a prescribed path included)
       const Vec3& free = m.free_axes[i];
-      ws.system.x0[i] += ((s.x[i] - s.x_prev[i]) / 3.0).cwiseProduct(free);
-      ws.system.v0[i] = ((4.0 * s.v[i] - s.v_prev[i]) / 3.0).cwiseProduct(free);
+      ws.system.x0[i] += bdf2_start_shift(s, i).cwiseProduct(free);
+      ws.system.v0[i] = bdf2_start_velocity(s, i).cwiseProduct(free);
     }
-    if (m.options.bdf2 && s.x_prev.size() == s.x.size()) {
+    if (keep_prev) {
       s.x_prev[i] = s.x[i];
       s.v_prev[i] = s.v[i];
     }
@@ -651,7 +652,7 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
   for (int i = 0; i < nn; ++i)
     s.v[i] = ((s.x[i] - ws.system.x0[i]) / h).cwiseProduct(m.free_axes[i]);
   // The next step has this one as its previous (x_prev, v_prev were set above).
-  s.has_prev = m.options.bdf2 && s.x_prev.size() == s.x.size();
+  s.has_prev = keep_prev;
 }
 
 }  // namespace

@@ -418,8 +418,8 @@ bool LocalModelBuilder::build(const Model& m, const State& s, Workspace& ws, int
     const bool bdf2 = detail::bdf2_step(m, s);
     const double hs = detail::implicit_h(m, s), mfac = 1 + hs * m.options.mass_damping;
     for (int i = 0; i < nn; ++i) {
-      const Vec3 xh = bdf2 ? Vec3((s.x[i] - s.x_prev[i]) / 3.0) : Vec3::Zero();
-      const Vec3 vh = bdf2 ? Vec3((4.0 * s.v[i] - s.v_prev[i]) / 3.0) : s.v[i];
+      const Vec3 xh = bdf2 ? detail::bdf2_start_shift(s, i) : Vec3::Zero();
+      const Vec3 vh = bdf2 ? detail::bdf2_start_velocity(s, i) : s.v[i];
       for (int c = 0; c < 3; ++c) r_[c * nn + i] = m.mass[i] * (mfac * xh[c] + hs * vh[c]);
     }
     (exact_ok_ ? exact_.get() : last(ws))->solve_many(r_.data(), z_.data(), 1);

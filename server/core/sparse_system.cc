@@ -327,7 +327,6 @@ using Rhs =
 // Scalar float: the values of a single-precision copy (lx).
 template <typename Scalar = double>
 struct Supernodes {
-  using Scalar_ = Scalar;
   const int *super, *pi, *px, *ls;
   const Scalar* lx;
   size_t count;
@@ -393,6 +392,36 @@ void backward_sweep(const Supernodes<Scalar>& L, Scalar* x, Scalar* t, int k) {
     Ls.topRows(nscol).transpose().template triangularView<Eigen::Upper>().solveInPlace(X1);
   }
 }
+
+// z = P^T L^-T L^-1 P r on the free axes (zero on fixed ones) for k right-hand sides, through X
+// (k entries per row of the permuted system, row-major) and the update scratch t, in the
+// factor's scalar: what supernodal_solve and precondition share.
+template <typename Scalar>
+void permuted_sweeps(const Supernodes<Scalar>& L, const int* iperm, const double* free, int nn,
+                     const double* r, double* z, int k, Scalar* x, Scalar* t) {
+  const int n = 3 * nn;
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) {
+      Scalar* xr = x + static_cast<size_t>(iperm[3 * i + c]) * k;
+      const double f = free[c * nn + i];
+      for (int q = 0; q < k; ++q)
+        xr[q] = static_cast<Scalar>(r[static_cast<size_t>(q) * n + c * nn + i] * f);
+    }
+  if (k == 1) {
+    forward_sweep<1, Scalar>(L, x, t, 1);
+    backward_sweep<1, Scalar>(L, x, t, 1);
+  } else {
+    forward_sweep<Eigen::Dynamic, Scalar>(L, x, t, k);
+    backward_sweep<Eigen::Dynamic, Scalar>(L, x, t, k);
+  }
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c) {
+      const Scalar* xr = x + static_cast<size_t>(iperm[3 * i + c]) * k;
+      const double f = free[c * nn + i];
+      for (int q = 0; q < k; ++q)
+        z[static_cast<size_t>(q) * n + c * nn + i] = static_cast<double>(xr[q]) * f;
+    }
+}
 }  // namespace
 
 // P^T L^-T L^-1 P with the supernodal factor read in place, supernode by supernode (Eigen's
@@ -405,27 +434,8 @@ void SystemFactor::supernodal_solve(const double* r, double* z, int k) {
   if (x_.size() < static_cast<size_t>(n) * k) x_.resize(static_cast<size_t>(n) * k);
   if (t_.size() < static_cast<size_t>(max_nsrow_) * k)
     t_.resize(static_cast<size_t>(max_nsrow_) * k);
-  // X row-major (k entries per row of the permuted system).
-  for (int i = 0; i < nn; ++i)
-    for (int c = 0; c < 3; ++c) {
-      double* xr = x_.data() + static_cast<size_t>(iperm_[3 * i + c]) * k;
-      const double f = free_[c * nn + i];
-      for (int q = 0; q < k; ++q) xr[q] = r[static_cast<size_t>(q) * n + c * nn + i] * f;
-    }
-  const Supernodes<> L(c_->L);
-  if (k == 1) {
-    forward_sweep<1>(L, x_.data(), t_.data(), 1);
-    backward_sweep<1>(L, x_.data(), t_.data(), 1);
-  } else {
-    forward_sweep<Eigen::Dynamic>(L, x_.data(), t_.data(), k);
-    backward_sweep<Eigen::Dynamic>(L, x_.data(), t_.data(), k);
-  }
-  for (int i = 0; i < nn; ++i)
-    for (int c = 0; c < 3; ++c) {
-      const double* xr = x_.data() + static_cast<size_t>(iperm_[3 * i + c]) * k;
-      const double f = free_[c * nn + i];
-      for (int q = 0; q < k; ++q) z[static_cast<size_t>(q) * n + c * nn + i] = xr[q] * f;
-    }
+  permuted_sweeps(Supernodes<>(c_->L), iperm_.data(), free_.data(), nn, r, z, k, x_.data(),
+                  t_.data());
 }
 
 // supernodal_solve's sweeps on the single-precision copy of the factor: half the memory each
@@ -436,16 +446,8 @@ void SystemFactor::precondition(const double* r, double* z) {
     solve(r, z);
     return;
   }
-  const int nn = nn_;
-  for (int i = 0; i < nn; ++i)
-    for (int c = 0; c < 3; ++c)
-      xf_[iperm_[3 * i + c]] = static_cast<float>(r[c * nn + i] * free_[c * nn + i]);
-  const Supernodes<float> L(c_->L, lxf_.data());
-  forward_sweep<1, float>(L, xf_.data(), tf_.data(), 1);
-  backward_sweep<1, float>(L, xf_.data(), tf_.data(), 1);
-  for (int i = 0; i < nn; ++i)
-    for (int c = 0; c < 3; ++c)
-      z[c * nn + i] = static_cast<double>(xf_[iperm_[3 * i + c]]) * free_[c * nn + i];
+  permuted_sweeps(Supernodes<float>(c_->L, lxf_.data()), iperm_.data(), free_.data(), nn_, r, z, 1,
+                  xf_.data(), tf_.data());
 }
 
 void SystemFactor::inverse_block(const int* nodes, int num, double* w, int ld) {

@@ -29,6 +29,12 @@ inline bool bdf2_step(const Model& m, const State& s) {
 inline double implicit_h(const Model& m, const State& s) {
   return bdf2_step(m, s) ? substep_of(m) * (2.0 / 3.0) : substep_of(m);
 }
+// Where a BDF2 step of node i starts, as backward Euler of step 2h / 3 (core/implicit.cc):
+// x^ - x_n = (x_n - x_n-1) / 3 and v^ = (4 v_n - v_n-1) / 3 (all axes).
+inline Vec3 bdf2_start_shift(const State& s, int i) { return (s.x[i] - s.x_prev[i]) / 3.0; }
+inline Vec3 bdf2_start_velocity(const State& s, int i) {
+  return (4.0 * s.v[i] - s.v_prev[i]) / 3.0;
+}
 
 // The smallest room (length - min_length) of a set of springs is reduced as the int64 bit
 // patterns of the doubles: for rooms >= 0 their order is the doubles' order, any negative room

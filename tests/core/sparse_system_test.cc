@@ -130,6 +130,33 @@ Eigen::MatrixXd DenseSystem(const Model& m, State& s, Workspace& ws, std::vector
   return A;
 }
 
+// The dense solve A^-1 r over the free axes (r component-major, A from DenseSystem).
+Eigen::VectorXd DenseSolve(const Eigen::MatrixXd& A, const std::vector<int>& free,
+                           const std::vector<double>& r) {
+  Eigen::VectorXd rf(static_cast<Eigen::Index>(free.size()));
+  for (size_t q = 0; q < free.size(); ++q) rf[static_cast<Eigen::Index>(q)] = r[free[q]];
+  return A.ldlt().solve(rf);
+}
+
+// The largest |z - zd| over the free axes (z component-major, zd from DenseSolve).
+double ErrorOnFree(const std::vector<double>& z, const std::vector<int>& free,
+                   const Eigen::VectorXd& zd) {
+  double err = 0;
+  for (size_t q = 0; q < free.size(); ++q)
+    err = std::max(err, std::abs(z[free[q]] - zd[static_cast<Eigen::Index>(q)]));
+  return err;
+}
+
+// z (component-major) is exactly zero on every fixed axis.
+void ExpectZeroOnFixedAxes(const Model& m, const std::vector<double>& z) {
+  const int nn = m.num_nodes();
+  for (int i = 0; i < nn; ++i)
+    for (int c = 0; c < 3; ++c)
+      if (!m.free_axes[i][c]) {
+        EXPECT_EQ(z[c * nn + i], 0.0) << "node " << i << " axis " << c;
+      }
+}
+
 class SparseSystemTest : public ::testing::TestWithParam<bool> {};
 
 TEST_P(SparseSystemTest, AssembledMatrixTimesAVectorIsTheMatrixFreeProduct) {
@@ -185,32 +212,23 @@ TEST_P(SparseSystemTest, FactorSolveInvertsTheMatrixFreeSystemLikeADenseSolve) {
   const Model m = Block(GetParam());
   State s = Pressed(m);
   Workspace ws(m);
-  const int nn = m.num_nodes(), n3 = 3 * nn;
+  const int n3 = 3 * m.num_nodes();
   std::vector<int> free;
   const Eigen::MatrixXd A = DenseSystem(m, s, ws, &free);
-  const int nf = static_cast<int>(free.size());
   std::vector<double> y(n3);
   ws.factor->current->assemble(m, ws);
   ASSERT_TRUE(ws.factor->current->factorize());
   const std::vector<double> r = Random(m, 9);
   std::vector<double> z(n3);
   ws.factor->current->solve(r.data(), z.data());
-  Eigen::VectorXd rf(nf);
-  for (int q = 0; q < nf; ++q) rf[q] = r[free[q]];
-  const Eigen::VectorXd zd = A.ldlt().solve(rf);
-  double err = 0;
-  for (int q = 0; q < nf; ++q) err = std::max(err, std::abs(z[free[q]] - zd[q]));
-  EXPECT_LT(err, 1e-9 * zd.cwiseAbs().maxCoeff());
+  const Eigen::VectorXd zd = DenseSolve(A, free, r);
+  EXPECT_LT(ErrorOnFree(z, free, zd), 1e-9 * zd.cwiseAbs().maxCoeff());
   // And A z = r through the matrix-free product; z vanishes on fixed axes.
   detail::system_product(m, s, ws, m.options.dt, z.data(), y.data());
   std::vector<double> res(n3);
   for (int k = 0; k < n3; ++k) res[k] = y[k] - r[k];
   EXPECT_LT(MaxAbs(res), 1e-9 * MaxAbs(r));
-  for (int i = 0; i < nn; ++i)
-    for (int c = 0; c < 3; ++c)
-      if (!m.free_axes[i][c]) {
-        EXPECT_EQ(z[c * nn + i], 0.0);
-      }
+  ExpectZeroOnFixedAxes(m, z);
 }
 
 // The preconditioner's single-precision sweeps of a supernodal factor against the dense solve:
@@ -220,14 +238,11 @@ TEST_P(SparseSystemTest, SinglePrecisionPreconditionerIsTheDenseSolveToSinglePre
   const Model m = Block(GetParam());
   State s = Pressed(m);
   Workspace ws(m);
-  const int nn = m.num_nodes(), n3 = 3 * nn;
+  const int n3 = 3 * m.num_nodes();
   std::vector<int> free;
   const Eigen::MatrixXd A = DenseSystem(m, s, ws, &free);
-  const int nf = static_cast<int>(free.size());
   const std::vector<double> r = Random(m, 11);
-  Eigen::VectorXd rf(nf);
-  for (int q = 0; q < nf; ++q) rf[q] = r[free[q]];
-  const Eigen::VectorXd zd = A.ldlt().solve(rf);
+  const Eigen::VectorXd zd = DenseSolve(A, free, r);
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A, Eigen::EigenvaluesOnly);
   const double cond = eig.eigenvalues().maxCoeff() / eig.eigenvalues().minCoeff();
   for (SystemFactor::Kind kind :
@@ -240,11 +255,7 @@ TEST_P(SparseSystemTest, SinglePrecisionPreconditionerIsTheDenseSolveToSinglePre
     std::vector<double> z(n3, -1.0), zs(n3, -1.0);
     f.precondition(r.data(), z.data());
     f.solve(r.data(), zs.data());
-    double err = 0, err_solve = 0;
-    for (int q = 0; q < nf; ++q) {
-      err = std::max(err, std::abs(z[free[q]] - zd[q]));
-      err_solve = std::max(err_solve, std::abs(zs[free[q]] - zd[q]));
-    }
+    const double err = ErrorOnFree(z, free, zd), err_solve = ErrorOnFree(zs, free, zd);
     const double scale = zd.cwiseAbs().maxCoeff();
     std::printf(
         "%s: precondition() within %.3g of the dense solve, solve() within %.3g (relative; "
@@ -257,11 +268,7 @@ TEST_P(SparseSystemTest, SinglePrecisionPreconditionerIsTheDenseSolveToSinglePre
     } else {
       EXPECT_EQ(z, zs);
     }
-    for (int i = 0; i < nn; ++i)
-      for (int c = 0; c < 3; ++c)
-        if (!m.free_axes[i][c]) {
-          EXPECT_EQ(z[c * nn + i], 0.0);
-        }
+    ExpectZeroOnFixedAxes(m, z);
   }
 }
 
