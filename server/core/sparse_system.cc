@@ -469,32 +469,37 @@ void SystemFactor::inverse_block(const int* nodes, int num, double* w, int ld) {
   }
   // Y (row-major, k entries per row of the permuted system): E's unit columns, then the forward
   // solve supernode by supernode (columns k1..k2 - 1, rows Ls[pi[s]..pi[s + 1]), the first
-  // nscol of them its own columns; values column-major, nsrow x nscol).
-  y_.assign(static_cast<size_t>(n) * k, 0.0);
+  // nscol of them its own columns; values column-major, nsrow x nscol). yz_ is zero between
+  // calls: the sweep writes only the rows it marks live, and those are cleared below, so a call
+  // costs the rows on the elimination tree's paths, not n k.
+  if (yz_.size() < static_cast<size_t>(n) * k) yz_.resize(static_cast<size_t>(n) * k, 0.0);
+  double* const y = yz_.data();
   live_.assign(n, 0);
   for (int col = 0; col < k; ++col) {
     const int i = nodes[col / 3], c = col % 3;
     if (free_[c * nn + i] == 0) continue;
     const int row = iperm_[3 * i + c];
-    y_[static_cast<size_t>(row) * k + col] = 1.0;
+    y[static_cast<size_t>(row) * k + col] = 1.0;
     live_[row] = 1;
   }
   if (t_.size() < static_cast<size_t>(max_nsrow_) * k)
     t_.resize(static_cast<size_t>(max_nsrow_) * k);
-  forward_sweep<Eigen::Dynamic>(Supernodes<>(L), y_.data(), t_.data(), k, live_.data());
-  // W = Y^T Y over Y's live rows, gathered.
+  forward_sweep<Eigen::Dynamic>(Supernodes<>(L), y, t_.data(), k, live_.data());
+  // W = Y^T Y over Y's live rows, gathered to the top (each row moved is cleared where it was).
   int m = 0;
   for (int row = 0; row < n; ++row)
     if (live_[row]) {
-      if (m != row)
-        std::copy(y_.begin() + static_cast<size_t>(row) * k,
-                  y_.begin() + static_cast<size_t>(row + 1) * k,
-                  y_.begin() + static_cast<size_t>(m) * k);
+      if (m != row) {
+        double* const from = y + static_cast<size_t>(row) * k;
+        std::copy(from, from + k, y + static_cast<size_t>(m) * k);
+        std::fill(from, from + k, 0.0);
+      }
       ++m;
     }
-  Eigen::Map<const Rhs<Eigen::Dynamic>> G(y_.data(), m, k);
+  Eigen::Map<const Rhs<Eigen::Dynamic>> G(y, m, k);
   Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>> W(w, k, k, Eigen::OuterStride<>(ld));
   W.noalias() = G.transpose() * G;
+  std::fill(y, y + static_cast<size_t>(m) * k, 0.0);
 }
 
 void SystemFactor::multiply(const double* p, double* y) const {

@@ -107,6 +107,7 @@ class SystemFactor {
   std::vector<float> xf_, tf_;       // precondition()'s right-hand side and update
   void supernodal_solve(const double* r, double* z, int k);
   std::vector<char> live_;  // (3 num_nodes) rows of Y that can be nonzero
+  std::vector<double> yz_;  // inverse_block's Y on a supernodal factor, zero between calls
   std::unique_ptr<Cholmod> c_;
   bool factored_ = false;
 };
