@@ -554,9 +554,12 @@ double residual_norm2(const Model& m, const State& s, const Workspace& ws, doubl
 // times) while it multiplies the residual by more than ten: the layer's lumped blocks only describe
 // the nodes it holds at the iterate, so a step from a state where a node was free of the tool can
 // overshoot into the barrier (or off the tool) and the fixed budget would end on that state. The
-// forces of the accepted iterate are the next iteration's.
-template <class SolveSystem>
-void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solve_system) {
+// forces of the accepted iterate are the next iteration's. estimate(r, z) (false: none) puts in z
+// an estimate of A^-1 r without the system (the factor's preconditioner), which ends the
+// iteration once it is within the Newton tolerance.
+template <class SolveSystem, class Estimate>
+void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solve_system,
+                     Estimate&& estimate) {
   constexpr int kContactBacktracks = 6;
   // A full update may raise the residual on its way (the lumped blocks are not the layer's exact
   // Jacobian) and still converge; one that multiplies it by more than ten is what overshoots (a
@@ -600,6 +603,19 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
     for (int i = 0; i < nn; ++i) {
       const Vec3 res = step_residual(m, s, ws, h, i);
       for (int c = 0; c < 3; ++c) ws.system.rhs[c * nn + i] = res[c] * ws.system.free[c * nn + i];
+    }
+    // Converged already? The update the factor alone estimates (its preconditioner applied to
+    // the residual: CG's first direction) moves no node farther than the Newton tolerance, and no
+    // spring nearer its hard stop than it has room for: it is applied, and the system's
+    // preparation and solve, which would find an update of that size, are left out.
+    if (m.options.newton_tolerance > 0 && estimate(ws.system.rhs.data(), ws.system.dx.data())) {
+      const double* dz = ws.system.dx.data();
+      if (newton_converged(m, nn, dz) &&
+          ws.springs.slack > 2 * std::sqrt(max_node_motion2(nn, dz))) {
+        for (int i = 0; i < nn; ++i) s.x[i] += Vec3(dz[i], dz[nn + i], dz[2 * nn + i]);
+        ++s.counters.newton_estimates;
+        break;
+      }
     }
     ws.system.h2 = h * h;
     system_coefficients(m, ws, h);
@@ -658,10 +674,13 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
 }  // namespace
 
 void integrate_implicit(const Model& m, State& s, Workspace& ws) {
-  implicit_newton(m, s, ws, [&] {
-    build_preconditioner(m, ws);
-    return solve(m, ws);
-  });
+  implicit_newton(
+      m, s, ws,
+      [&] {
+        build_preconditioner(m, ws);
+        return solve(m, ws);
+      },
+      [](const double*, double*) { return false; });  // block-Jacobi: no estimate of the update
 }
 
 // integrate_implicit with LinearSolver::kFactorCG: the same Newton iteration and line search,
@@ -669,7 +688,13 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
 void integrate_implicit_factored(const Model& m, State& s, Workspace& ws) {
   FactorScratch& F = *ws.factor;
   if (m.options.refactor_every > 0 && ++F.age >= m.options.refactor_every) F.wanted = true;
-  implicit_newton(m, s, ws, [&] { return factored_solve(m, s, ws); });
+  implicit_newton(
+      m, s, ws, [&] { return factored_solve(m, s, ws); },
+      [&](const double* r, double* z) {
+        if (!F.current->factored()) return false;
+        F.current->precondition(r, z);
+        return true;
+      });
 }
 
 }  // namespace conica::detail

@@ -314,6 +314,7 @@ struct Counters {
   std::uint64_t hard_stops = 0;         // springs projected back to their minimum length
   std::uint64_t cg_iterations = 0;      // total, implicit only
   std::uint64_t newton_iterations = 0;  // total, implicit only
+  std::uint64_t newton_estimates = 0;   // kFactorCG: steps ended by the factor's estimate
   std::uint64_t factorizations = 0;     // kFactorCG: factors taken into use
   std::uint64_t factor_failures = 0;    // kFactorCG: factorisations refused (not positive definite)
   std::uint64_t indefinite_tangents = 0;  // Newton iterations whose exact tangent CG refused
