@@ -763,6 +763,13 @@ int main(int argc, char** argv) {
   Heap heap_start;
   long heap_peak_in_use = 0;
   conica::net::LoopStatsData s_start;
+  // The sample the run's growth and missed ticks are counted from, taken at time t.
+  auto take_warm_sample = [&](Clock::time_point t) {
+    warm_at = std::chrono::duration<double>(t - t0).count();
+    rss_start = rss_kib();
+    heap_start = heap_kib();
+    s_start = server.stats();
+  };
   std::vector<Sample> samples;
   MachineSample m_prev = machine_sample();
   double server_cpu_prev = cpu_seconds(0), clients_cpu_prev = clients_cpu();
@@ -785,12 +792,7 @@ int main(int argc, char** argv) {
     }
     if (signal_number != 0) break;
     const auto t = Clock::now();
-    if (rss_start < 0 && t >= warm) {
-      warm_at = std::chrono::duration<double>(t - t0).count();
-      rss_start = rss_kib();
-      heap_start = heap_kib();
-      s_start = server.stats();
-    }
+    if (rss_start < 0 && t >= warm) take_warm_sample(t);
     const auto st = server.stats();
     const MachineSample m = machine_sample();
     const double server_cpu = cpu_seconds(0), client_cpu = clients_cpu();
@@ -885,12 +887,7 @@ int main(int argc, char** argv) {
                                              : "gave no report");
     }
   }
-  if (rss_start < 0) {  // interrupted before the warm-up ended
-    warm_at = std::chrono::duration<double>(Clock::now() - t0).count();
-    rss_start = rss_kib();
-    heap_start = heap_kib();
-    s_start = server.stats();
-  }
+  if (rss_start < 0) take_warm_sample(Clock::now());  // interrupted before the warm-up ended
   const long rss_end = rss_kib();
   const Heap heap_end = heap_kib();
   server.stop();

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <tuple>
 #include <type_traits>
+#include <utility>
 
 #include "core/element_terms.h"
 #include "core/sparse_system.h"
@@ -393,9 +394,9 @@ void system_coefficients(const Model& m, Workspace& ws, double h) {
 }
 
 // Preconditioned CG from dx = 0 on A dx = rhs within the budget; returns the iterations taken.
-// precondition(r, z) sets z = P r and returns r.z.
+// precondition(r, z) sets z = P r and returns r.z; z_ready: ws.system.z holds P rhs already.
 template <typename Precondition>
-int pcg(const Model& m, Workspace& ws, Precondition&& precondition) {
+int pcg(const Model& m, Workspace& ws, Precondition&& precondition, bool z_ready = false) {
   const int nn = m.num_nodes(), n3 = 3 * nn;
   double* __restrict dx = ws.system.dx.data();
   double* __restrict r = ws.system.r.data();
@@ -406,7 +407,7 @@ int pcg(const Model& m, Workspace& ws, Precondition&& precondition) {
   std::fill(dx, dx + n3, 0.0);
   std::copy(rhs, rhs + n3, r);
   ws.system.indefinite = false;
-  double rz = precondition(r, z);
+  double rz = z_ready ? dot(n3, r, z) : precondition(r, z);
   std::copy(z, z + n3, p);
   const double bnorm2 = dot(n3, r, r);
   const double tol2 = m.options.cg_tolerance * m.options.cg_tolerance * bnorm2;
@@ -445,18 +446,23 @@ int solve(const Model& m, Workspace& ws) {
 }
 
 // CG with the factor's A_f^-1 as the preconditioner (LinearSolver::kFactorCG).
-int solve_factored(const Model& m, Workspace& ws, SystemFactor& factor) {
+int solve_factored(const Model& m, Workspace& ws, SystemFactor& factor, bool z_ready) {
   const int n3 = 3 * m.num_nodes();
-  return pcg(m, ws, [n3, &factor](const double* r, double* z) {
-    factor.precondition(r, z);
-    return dot(n3, r, z);
-  });
+  return pcg(
+      m, ws,
+      [n3, &factor](const double* r, double* z) {
+        factor.precondition(r, z);
+        return dot(n3, r, z);
+      },
+      z_ready);
 }
 
 // One Newton iteration's solve with LinearSolver::kFactorCG: takes a factor the worker finished,
 // asks for a new one when wanted (assembled here; factored by the worker, or here without one),
 // then CG with the factor in use, or with the block-Jacobi preconditioner until there is one.
-int factored_solve(const Model& m, State& s, Workspace& ws) {
+// CG's first preconditioned residual is the estimate already in ws.system.z when `estimated`, the
+// factor that made it, is still the one in use.
+int factored_solve(const Model& m, State& s, Workspace& ws, const SystemFactor* estimated) {
   FactorScratch& F = *ws.factor;
   int st = F.next_state.load(std::memory_order_acquire);
   if (st == FactorScratch::kFactored || st == FactorScratch::kFailed) {
@@ -485,7 +491,7 @@ int factored_solve(const Model& m, State& s, Workspace& ws) {
   }
   int it;
   if (F.current->factored()) {
-    it = solve_factored(m, ws, *F.current);
+    it = solve_factored(m, ws, *F.current, F.current.get() == estimated);
   } else {
     build_preconditioner(m, ws);
     it = solve(m, ws);
@@ -555,8 +561,8 @@ double residual_norm2(const Model& m, const State& s, const Workspace& ws, doubl
 // the nodes it holds at the iterate, so a step from a state where a node was free of the tool can
 // overshoot into the barrier (or off the tool) and the fixed budget would end on that state. The
 // forces of the accepted iterate are the next iteration's. estimate(r, z) (false: none) puts in z
-// an estimate of A^-1 r without the system (the factor's preconditioner), which ends the
-// iteration once it is within the Newton tolerance.
+// (ws.system.z) an estimate of A^-1 r without the system (the factor's preconditioner), which
+// ends the iteration once it is within the Newton tolerance; otherwise CG starts from it.
 template <class SolveSystem, class Estimate>
 void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solve_system,
                      Estimate&& estimate) {
@@ -608,8 +614,8 @@ void implicit_newton(const Model& m, State& s, Workspace& ws, SolveSystem&& solv
     // the residual: CG's first direction) moves no node farther than the Newton tolerance, and no
     // spring nearer its hard stop than it has room for: it is applied, and the system's
     // preparation and solve, which would find an update of that size, are left out.
-    if (m.options.newton_tolerance > 0 && estimate(ws.system.rhs.data(), ws.system.dx.data())) {
-      const double* dz = ws.system.dx.data();
+    if (m.options.newton_tolerance > 0 && estimate(ws.system.rhs.data(), ws.system.z.data())) {
+      const double* dz = ws.system.z.data();
       if (newton_converged(m, nn, dz) &&
           ws.springs.slack > 2 * std::sqrt(max_node_motion2(nn, dz))) {
         for (int i = 0; i < nn; ++i) s.x[i] += Vec3(dz[i], dz[nn + i], dz[2 * nn + i]);
@@ -688,11 +694,15 @@ void integrate_implicit(const Model& m, State& s, Workspace& ws) {
 void integrate_implicit_factored(const Model& m, State& s, Workspace& ws) {
   FactorScratch& F = *ws.factor;
   if (m.options.refactor_every > 0 && ++F.age >= m.options.refactor_every) F.wanted = true;
+  // The factor whose preconditioner made this iteration's estimate (in ws.system.z, CG's first
+  // preconditioned residual when the solve keeps that factor).
+  const SystemFactor* estimated = nullptr;
   implicit_newton(
-      m, s, ws, [&] { return factored_solve(m, s, ws); },
+      m, s, ws, [&] { return factored_solve(m, s, ws, std::exchange(estimated, nullptr)); },
       [&](const double* r, double* z) {
         if (!F.current->factored()) return false;
         F.current->precondition(r, z);
+        estimated = F.current.get();
         return true;
       });
 }

@@ -100,7 +100,8 @@ class SystemFactor {
   std::vector<double> free_;         // (3 num_nodes) component-major free-axis mask
   std::vector<double> work_;         // (3 num_nodes) the solve's permuted vector
   std::vector<int> iperm_;           // (3 num_nodes) the factor's row of each unknown
-  std::vector<double> y_, t_;        // inverse_block's scratch: Y (row-major) and an update
+  std::vector<double> y_;            // inverse_block's column and its solve on a simplicial factor
+  std::vector<double> t_;            // the supernodal sweeps' update
   std::vector<double> x_;            // the supernodal solve's right-hand sides (row-major)
   int max_nsrow_ = 0;                // the supernodes' largest row count
   std::vector<float> lxf_;           // a supernodal factor's values in single precision
