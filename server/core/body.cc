@@ -378,7 +378,7 @@ std::string build_model(const BodySpec& spec, Model* out) {
       double vq[8];
       m.hex_rest_volume.push_back(element_volume(mesh.nodes, h.data(), 8, g, vq));
       total += std::abs(m.hex_rest_volume.back());
-      if (m.spread_modulus > 0) m.hex_rest_gauss.insert(m.hex_rest_gauss.end(), vq, vq + 8);
+      m.hex_rest_gauss.insert(m.hex_rest_gauss.end(), vq, vq + 8);
     }
     const double tiny = 1e-8 * total / (m.tetrahedra.size() + m.hexahedra.size());
     for (size_t e = 0; e < m.tet_rest_volume.size(); ++e)

@@ -75,7 +75,7 @@ double volume_forces(const Model& m, double v, double v0, const Vec3* g, const d
 // Pressure forces of the elements' volume stiffness and the hexahedra's Gauss-point spread; every
 // element's dV/dx (and the spread's gradients) are kept for the implicit system.
 void VolumeTerm::add_forces(const Model& m, const std::vector<Vec3>& x, ElementScratch& E,
-                            std::vector<Vec3>& force) {
+                            std::vector<Vec3>& force, bool hexahedra) {
   const bool spread = m.spread_modulus > 0;
   Vec3* g = E.volume_grad.data();
   double* coef = E.volume_coef.data();
@@ -88,7 +88,7 @@ void VolumeTerm::add_forces(const Model& m, const std::vector<Vec3>& x, ElementS
                                [&](int a, const Vec3& f) { force[nodes[a]] += f; });
     g += 4;
   }
-  const int nh = static_cast<int>(m.hexahedra.size());
+  const int nh = hexahedra ? static_cast<int>(m.hexahedra.size()) : 0;
   for (int e = 0; e < nh; ++e) {
     const int* nodes = m.hexahedra[e].data();
     Vec3* gq = spread ? E.spread_grad.data() + 64 * e : nullptr;
@@ -123,11 +123,12 @@ double VolumeTerm::energy(const Model& m, const std::vector<Vec3>& x) {
 }
 
 void ShearTerm::add_forces(const Model& m, const std::vector<Vec3>& x, ElementScratch& E,
-                           std::vector<Vec3>& force) {
+                           std::vector<Vec3>& force, bool hexahedra) {
   const Vec3* b = m.shear_b.data();
   const double* v0 = m.shear_v0.data();
   double* coef = E.shear_coef.data();
   for (const auto& t : m.tetrahedra) shear_element<4>(m, x, t, 1, b, v0, coef, force);
+  if (!hexahedra) return;
   for (const auto& h : m.hexahedra) shear_element<8>(m, x, h, 8, b, v0, coef, force);
 }
 
@@ -169,8 +170,100 @@ void ShearTerm::prepare_system(const Model& m, double h2, ElementScratch& E) {
   for (size_t e = 0; e < m.hexahedra.size(); ++e) element(8, 8);
 }
 
+namespace {
+
+// Hexahedron e's volume, spread and shear terms in one pass over its Gauss points, with its nodes
+// at x[0..8): the forces VolumeTerm::add_forces and ShearTerm::add_forces give it into f[0..8)
+// (overwritten), and what they keep in E. At Gauss point q the map's Jacobian is F_q J0_q (F_q
+// the deformation gradient the shear term takes, J0_q the rest map's), so the point's volume
+// share is v0_q det F_q and its gradient v0_q cof(F_q) b_qa (v0_q the signed rest share): one F_q
+// and one cofactor per point serve both terms, where the two passes built the map's Jacobian and
+// F_q from the nodes each.
+void hex_terms(const Model& m, int e, const Vec3* x, ElementScratch& E, Vec3* f) {
+  const int nt = static_cast<int>(m.tetrahedra.size());
+  const Vec3* b = m.shear_b.data() + 4 * nt + 64 * e;
+  const double* w0 = m.shear_v0.data() + nt + 8 * e;   // |v0_q|
+  const double* s0 = m.hex_rest_gauss.data() + 8 * e;  // v0_q, signed
+  const double mu = m.shear_modulus, beta = m.shear_stiffening;
+  Mat3 F[8], cof[8], P[8];
+  double vq[8], J[8], y[8], v = 0;
+  for (int q = 0; q < 8; ++q) {
+    const Vec3* bq = b + 8 * q;
+    F[q].setZero();
+    for (int a = 0; a < 8; ++a) F[q].noalias() += x[a] * bq[a].transpose();
+    Mat3& c = cof[q];
+    c.col(0) = F[q].col(1).cross(F[q].col(2));
+    c.col(1) = F[q].col(2).cross(F[q].col(0));
+    c.col(2) = F[q].col(0).cross(F[q].col(1));
+    J[q] = F[q].col(0).dot(c.col(0));
+    vq[q] = s0[q] * J[q];
+    v += vq[q];
+  }
+  inverse_cube_roots<8>(J, y);  // J^(-1/3), the eight at once
+  for (int q = 0; q < 8; ++q) {
+    double coef = 1;  // isochoric_yeoh's, with the cofactor at hand
+    if (J[q] > 0) {
+      const double jm = y[q] * y[q], i1 = F[q].squaredNorm();
+      const double g = 1 + 2 * beta * (jm * i1 - 3);
+      coef = g * jm;
+      P[q] = (w0[q] * mu * g * jm) * (F[q] - (i1 / (3 * J[q])) * cof[q]);
+    } else {
+      P[q].setZero();
+    }
+    E.shear_coef[nt + 8 * e + q] = w0[q] * mu * coef;
+  }
+  // The volume term (pressure p on dV/dx_a = g_a, the spread's d_q on G_qa = g_qa - g_a / 8).
+  const double v0 = m.hex_rest_volume[e];
+  const double kv = m.bulk_modulus / std::abs(v0), p = -kv * (v - v0);
+  E.volume_coef[nt + e] = kv;
+  Vec3* g = E.volume_grad.data() + 4 * nt + 8 * e;
+  Vec3 gq[64];
+  for (int a = 0; a < 8; ++a) g[a].setZero();
+  for (int q = 0; q < 8; ++q)
+    for (int a = 0; a < 8; ++a) {
+      gq[8 * q + a] = s0[q] * (cof[q] * b[8 * q + a]);
+      g[a] += gq[8 * q + a];
+    }
+  for (int a = 0; a < 8; ++a) f[a] = p * g[a];
+  if (m.spread_modulus > 0) {
+    const double cs = 8 * m.spread_modulus / std::abs(v0), mean = (v - v0) / 8;
+    E.spread_coef[e] = cs;
+    Vec3* G = E.spread_grad.data() + 64 * e;
+    for (int q = 0; q < 8; ++q) {
+      const double dq = -cs * ((vq[q] - s0[q]) - mean);
+      for (int a = 0; a < 8; ++a) {
+        G[8 * q + a] = gq[8 * q + a] - g[a] / 8;
+        f[a] += dq * G[8 * q + a];
+      }
+    }
+  }
+  for (int q = 0; q < 8; ++q)
+    for (int a = 0; a < 8; ++a) f[a].noalias() -= P[q] * b[8 * q + a];
+}
+
+// Whether the hexahedra take hex_terms: both terms on, so that one F_q serves both.
+bool hex_terms_fused(const Model& m) {
+  return m.bulk_modulus > 0 && m.shear_modulus > 0 && !m.hexahedra.empty();
+}
+
+}  // namespace
+
 void element_forces(const Model& m, const State& s, Workspace& ws) {
-  for_each_term(m, [&](auto term) { term.add_forces(m, s.x, ws.elements, ws.force); });
+  if (!hex_terms_fused(m)) {
+    for_each_term(m, [&](auto term) { term.add_forces(m, s.x, ws.elements, ws.force); });
+    return;
+  }
+  ElementScratch& E = ws.elements;
+  VolumeTerm::add_forces(m, s.x, E, ws.force, /*hexahedra=*/false);
+  ShearTerm::add_forces(m, s.x, E, ws.force, /*hexahedra=*/false);
+  const int nh = static_cast<int>(m.hexahedra.size());
+  Vec3 x[8], f[8];
+  for (int e = 0; e < nh; ++e) {
+    const auto& nodes = m.hexahedra[e];
+    for (int a = 0; a < 8; ++a) x[a] = s.x[nodes[a]];
+    hex_terms(m, e, x, E, f);
+    for (int a = 0; a < 8; ++a) ws.force[nodes[a]] += f[a];
+  }
 }
 
 template <int N>
@@ -270,7 +363,7 @@ void tet_hessian_blocks(const Model& m, int e, const Vec3* x, int a0, double* H)
   const double ws = shear ? m.shear_v0[e] : 0.0;
   const Mat3 FiT = cof / J;
   const double i1 = F.squaredNorm();
-  const double jm = shear ? 1 / std::cbrt(J * J) : 0.0;  // J^(-2/3)
+  const double y = shear ? inverse_cube_root(J) : 0.0, jm = y * y;  // J^(-2/3)
   const double d = jm * i1 - 3;
   const double psi1 = ws * 0.5 * m.shear_modulus * (1 + 2 * m.shear_stiffening * d);
   const double psi2 = ws * m.shear_modulus * m.shear_stiffening;

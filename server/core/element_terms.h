@@ -6,8 +6,9 @@
 // `ElementTerms` (for_each_term; the implicit system last to first, for_each_term_reversed):
 //   active(m)                           the model has the term
 //   energy(m, x)                        J, stored at positions x (potential_energy)
-//   add_forces(m, x, E, force)          force += -dW/dx (N) at x (the element stage), keeping in
-//                                       E what the term's system block needs
+//   add_forces(m, x, E, force, hexahedra = true)
+//                                       force += -dW/dx (N) at x (hexahedra too, or tetrahedra
+//                                       only), keeping in E what the term's system block needs
 //   prepare_system(m, h2, E)            once per Newton iteration, after the forces
 //   times<N>(m, E, h2, e, P, Y)         Y += h^2 H_e P for element e of its kind (the implicit
 //                                       system's product); P, Y gathered per node: [c][a] is
@@ -74,7 +75,7 @@ struct VolumeTerm {
   static bool active(const Model& m) { return m.bulk_modulus > 0; }
   static double energy(const Model& m, const std::vector<Vec3>& x);
   static void add_forces(const Model& m, const std::vector<Vec3>& x, ElementScratch& E,
-                         std::vector<Vec3>& force);
+                         std::vector<Vec3>& force, bool hexahedra = true);
   static void prepare_system(const Model&, double, ElementScratch&) {}
   template <int N>
   static void times(const Model& m, const ElementScratch& E, double h2, int e,
@@ -127,7 +128,7 @@ struct ShearTerm {
   static bool active(const Model& m) { return m.shear_modulus > 0; }
   static double energy(const Model& m, const std::vector<Vec3>& x);
   static void add_forces(const Model& m, const std::vector<Vec3>& x, ElementScratch& E,
-                         std::vector<Vec3>& force);
+                         std::vector<Vec3>& force, bool hexahedra = true);
   static void prepare_system(const Model& m, double h2, ElementScratch& E);
   template <int N>
   static const double* laplacian(const Model& m, const ElementScratch& E, int e) {
@@ -198,7 +199,9 @@ void for_each_term_reversed(const Model& m, F&& f) {
   });
 }
 
-// The element stage: every term's forces added to ws.force.
+// The element stage: every term's forces added to ws.force. With both the volume and the shear
+// term on, the hexahedra take them in one pass over their Gauss points (one deformation gradient
+// per point for both), the same forces to rounding.
 void element_forces(const Model& m, const State& s, Workspace& ws);
 
 // The forces of every element term on element e of its kind (N = 4: tetrahedron e, N = 8:

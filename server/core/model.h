@@ -212,7 +212,7 @@ struct Model {
   // With spread_modulus > 0 each hexahedron also stores (kappa_s / (2 |V0| / 8)) sum_q d_q^2,
   // d_q = (v_q - v0_q) - (V - V0) / 8, its Gauss-point shares' departure from a uniform change.
   double spread_modulus = 0;           // Pa, kappa_s
-  std::vector<double> hex_rest_gauss;  // (8 hexahedra) v0_q, m^3, when kappa_s > 0
+  std::vector<double> hex_rest_gauss;  // (8 hexahedra) signed v0_q, m^3, when kappa > 0
   // Shear stiffness (core/volume.h): isochoric neo-Hookean per tetrahedron and per Gauss point
   // of a hexahedron, with shape-function gradients at rest (tetrahedra 4 each, then hexahedra
   // 64 each, point-major) and rest volume shares |v0| (1 per tetrahedron, 8 per hexahedron).

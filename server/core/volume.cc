@@ -115,7 +115,7 @@ double isochoric_yeoh(const double* f, double mu, double beta, double* p, double
     *coef = 1;
     return 0;
   }
-  const double c = std::cbrt(J), m = 1 / (c * c), i1 = F.squaredNorm();
+  const double y = inverse_cube_root(J), m = y * y, i1 = F.squaredNorm();
   const double d = m * i1 - 3;        // I1b - 3 >= 0
   const double g = 1 + 2 * beta * d;  // 2 dW/dI1b / mu
   *coef = g * m;
