@@ -96,8 +96,8 @@ void BM_PrepareAndProduct(benchmark::State& state) {
 void BM_Precondition(benchmark::State& state) {
   Pressed& p = Scene();
   if (!p.ok) return state.SkipWithError("the scene did not load or its probe felt nothing");
-  SystemFactor f(p.m, state.range(0) ? SystemFactor::Kind::kSupernodal
-                                     : SystemFactor::Kind::kSimplicial);
+  SystemFactor f(
+      p.m, state.range(0) ? SystemFactor::Kind::kSupernodal : SystemFactor::Kind::kSimplicial);
   detail::prepare_system_at(p.m, p.s, *p.ws, p.m.options.dt);
   f.assemble(p.m, *p.ws);
   if (!f.factorize()) return state.SkipWithError("the system's factorisation failed");

@@ -361,6 +361,9 @@ std::string build_model(const BodySpec& spec, Model* out) {
       if (!hex_shape_gradients(x.data(), b.data(), v0))
         return "shear_modulus: hexahedron " + std::to_string(e) + " is degenerate";
       m.shear_b.insert(m.shear_b.end(), b.begin(), b.end());
+      for (int a = 0; a < 8; ++a)
+        for (int j = 0; j < 3; ++j)
+          for (int q = 0; q < 8; ++q) m.hex_b.push_back(b[8 * q + a][j]);
       for (double v : v0) m.shear_v0.push_back(std::abs(v));
     }
   }

@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 #include "core/volume.h"
@@ -167,7 +168,18 @@ void ShearTerm::prepare_system(const Model& m, double h2, ElementScratch& E) {
     lap += n * n;
   };
   for (size_t e = 0; e < m.tetrahedra.size(); ++e) element(4, 1);
-  for (size_t e = 0; e < m.hexahedra.size(); ++e) element(8, 8);
+  // Hexahedra: the Gauss points in the lanes (Model::hex_b), sum_q c_q (b_qa . b_qd) per pair.
+  const double* hb = m.hex_b.data();
+  for (size_t e = 0; e < m.hexahedra.size(); ++e, hb += 192, c += 8, lap += 64) {
+    const Lanes8 cq = h2 * load_lanes(c);
+    Lanes8 B[8][3];
+    for (int a = 0; a < 8; ++a)
+      for (int j = 0; j < 3; ++j) B[a][j] = load_lanes(hb + (3 * a + j) * 8);
+    for (int a = 0; a < 8; ++a)
+      for (int d = a; d < 8; ++d)
+        lap[8 * a + d] = lap[8 * d + a] =
+            lane_sum(cq * (B[a][0] * B[d][0] + B[a][1] * B[d][1] + B[a][2] * B[d][2]));
+  }
 }
 
 namespace {
@@ -180,65 +192,74 @@ namespace {
 // and one cofactor per point serve both terms, where the two passes built the map's Jacobian and
 // F_q from the nodes each.
 void hex_terms(const Model& m, int e, const Vec3* x, ElementScratch& E, Vec3* f) {
+  // Every quantity of a Gauss point is a row of 8 lanes, one per point.
   const int nt = static_cast<int>(m.tetrahedra.size());
-  const Vec3* b = m.shear_b.data() + 4 * nt + 64 * e;
-  const double* w0 = m.shear_v0.data() + nt + 8 * e;   // |v0_q|
-  const double* s0 = m.hex_rest_gauss.data() + 8 * e;  // v0_q, signed
+  const double* b = m.hex_b.data() + 192 * static_cast<size_t>(e);  // [(3 a + j) 8 + q]
+  const Lanes8 w0 = load_lanes(m.shear_v0.data() + nt + 8 * e);     // |v0_q|
+  const Lanes8 s0 = load_lanes(m.hex_rest_gauss.data() + 8 * e);    // v0_q, signed
   const double mu = m.shear_modulus, beta = m.shear_stiffening;
-  Mat3 F[8], cof[8], P[8];
-  double vq[8], J[8], y[8], v = 0;
-  for (int q = 0; q < 8; ++q) {
-    const Vec3* bq = b + 8 * q;
-    F[q].setZero();
-    for (int a = 0; a < 8; ++a) F[q].noalias() += x[a] * bq[a].transpose();
-    Mat3& c = cof[q];
-    c.col(0) = F[q].col(1).cross(F[q].col(2));
-    c.col(1) = F[q].col(2).cross(F[q].col(0));
-    c.col(2) = F[q].col(0).cross(F[q].col(1));
-    J[q] = F[q].col(0).dot(c.col(0));
-    vq[q] = s0[q] * J[q];
-    v += vq[q];
-  }
-  inverse_cube_roots<8>(J, y);  // J^(-1/3), the eight at once
-  for (int q = 0; q < 8; ++q) {
-    double coef = 1;  // isochoric_yeoh's, with the cofactor at hand
-    if (J[q] > 0) {
-      const double jm = y[q] * y[q], i1 = F[q].squaredNorm();
-      const double g = 1 + 2 * beta * (jm * i1 - 3);
-      coef = g * jm;
-      P[q] = (w0[q] * mu * g * jm) * (F[q] - (i1 / (3 * J[q])) * cof[q]);
-    } else {
-      P[q].setZero();
-    }
-    E.shear_coef[nt + 8 * e + q] = w0[q] * mu * coef;
-  }
-  // The volume term (pressure p on dV/dx_a = g_a, the spread's d_q on G_qa = g_qa - g_a / 8).
+  Lanes8 B[8][3];  // b_qa component j
+  for (int a = 0; a < 8; ++a)
+    for (int j = 0; j < 3; ++j) B[a][j] = load_lanes(b + (3 * a + j) * 8);
+  Lanes8 F[9] = {};  // F_ij at [3 i + j]
+  for (int a = 0; a < 8; ++a)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) F[3 * i + j] += x[a][i] * B[a][j];
+  // cof(F) = J F^-T: its columns are the cross products of F's columns.
+  Lanes8 C[9];
+  C[0] = F[4] * F[8] - F[7] * F[5];
+  C[3] = F[7] * F[2] - F[1] * F[8];
+  C[6] = F[1] * F[5] - F[4] * F[2];
+  C[1] = F[5] * F[6] - F[8] * F[3];
+  C[4] = F[8] * F[0] - F[2] * F[6];
+  C[7] = F[2] * F[3] - F[5] * F[0];
+  C[2] = F[3] * F[7] - F[6] * F[4];
+  C[5] = F[6] * F[1] - F[0] * F[7];
+  C[8] = F[0] * F[4] - F[3] * F[1];
+  const Lanes8 J = F[0] * C[0] + F[3] * C[3] + F[6] * C[6];
+  const Lanes8 vq = s0 * J;
+  Lanes8 i1 = {};
+  for (int k = 0; k < 9; ++k) i1 += F[k] * F[k];
+  const Lanes8 y = inverse_cube_roots(J);  // J^(-1/3)
+  // The shear stress, |v0_q| P_q = sF_q F_q - sC_q cof(F_q) (isochoric_yeoh's, with the
+  // cofactor at hand; no stress where J <= 0, and the Laplacian's coefficient 1 there).
+  const Lanes8 jm = y * y;
+  const Lanes8 gy = 1 + 2 * beta * (jm * i1 - 3);
+  const auto stressed = J > 0;
+  const Lanes8 zero = {}, one = zero + 1;
+  const Lanes8 sF = stressed ? w0 * mu * gy * jm : zero;
+  const Lanes8 sC = stressed ? sF * i1 / (3 * J) : zero;
+  const Lanes8 coef = w0 * mu * (stressed ? gy * jm : one);
+  std::memcpy(E.shear_coef.data() + nt + 8 * e, &coef, sizeof coef);
+  const double v = lane_sum(vq);
   const double v0 = m.hex_rest_volume[e];
   const double kv = m.bulk_modulus / std::abs(v0), p = -kv * (v - v0);
   E.volume_coef[nt + e] = kv;
-  Vec3* g = E.volume_grad.data() + 4 * nt + 8 * e;
-  Vec3 gq[64];
-  for (int a = 0; a < 8; ++a) g[a].setZero();
-  for (int q = 0; q < 8; ++q)
-    for (int a = 0; a < 8; ++a) {
-      gq[8 * q + a] = s0[q] * (cof[q] * b[8 * q + a]);
-      g[a] += gq[8 * q + a];
-    }
-  for (int a = 0; a < 8; ++a) f[a] = p * g[a];
-  if (m.spread_modulus > 0) {
+  const bool spread = m.spread_modulus > 0;
+  Lanes8 dq = {};
+  if (spread) {
     const double cs = 8 * m.spread_modulus / std::abs(v0), mean = (v - v0) / 8;
     E.spread_coef[e] = cs;
-    Vec3* G = E.spread_grad.data() + 64 * e;
-    for (int q = 0; q < 8; ++q) {
-      const double dq = -cs * ((vq[q] - s0[q]) - mean);
-      for (int a = 0; a < 8; ++a) {
-        G[8 * q + a] = gq[8 * q + a] - g[a] / 8;
-        f[a] += dq * G[8 * q + a];
+    dq = -cs * ((vq - s0) - mean);
+  }
+  const double dmean = lane_sum(dq) / 8;
+  // Per node and axis: gq_a = v0_q cof(F_q) b_qa (the gradient of point q's volume share), g_a
+  // their sum; the forces p g_a + sum_q d_q G_qa - sum_q |v0_q| P_q b_qa, G_qa = gq_a - g_a / 8.
+  Vec3* g = E.volume_grad.data() + 4 * nt + 8 * e;
+  Vec3* G = spread ? E.spread_grad.data() + 64 * e : nullptr;
+  for (int a = 0; a < 8; ++a)
+    for (int i = 0; i < 3; ++i) {
+      const Lanes8 cb = C[3 * i] * B[a][0] + C[3 * i + 1] * B[a][1] + C[3 * i + 2] * B[a][2];
+      const Lanes8 fb = F[3 * i] * B[a][0] + F[3 * i + 1] * B[a][1] + F[3 * i + 2] * B[a][2];
+      const Lanes8 gq = s0 * cb;
+      const double ga = lane_sum(gq);
+      g[a][i] = ga;
+      f[a][i] = (p - dmean) * ga + lane_sum(dq * gq - (sF * fb - sC * cb));
+      if (spread) {
+        const Lanes8 Gq = gq - ga / 8;
+        for (int q = 0; q < 8; ++q) G[8 * q + a][i] = Gq[q];
       }
     }
-  }
-  for (int q = 0; q < 8; ++q)
-    for (int a = 0; a < 8; ++a) f[a].noalias() -= P[q] * b[8 * q + a];
 }
 
 // Whether the hexahedra take hex_terms: both terms on, so that one F_q serves both.

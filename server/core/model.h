@@ -216,9 +216,12 @@ struct Model {
   // Shear stiffness (core/volume.h): isochoric neo-Hookean per tetrahedron and per Gauss point
   // of a hexahedron, with shape-function gradients at rest (tetrahedra 4 each, then hexahedra
   // 64 each, point-major) and rest volume shares |v0| (1 per tetrahedron, 8 per hexahedron).
-  double shear_modulus = 0;      // Pa, mu; 0: none
-  double shear_stiffening = 0;   // beta (dimensionless): Yeoh's (mu / 2) beta (I1b - 3)^2 on top
-  std::vector<Vec3> shear_b;     // 1/m
+  double shear_modulus = 0;     // Pa, mu; 0: none
+  double shear_stiffening = 0;  // beta (dimensionless): Yeoh's (mu / 2) beta (I1b - 3)^2 on top
+  std::vector<Vec3> shear_b;    // 1/m
+  // The hexahedra's b_qa again, laid out for the one pass over their Gauss points (hex_terms,
+  // core/element_terms.cc): 192 per hexahedron, [(3 a + j) 8 + q] (component j of b_qa).
+  std::vector<double> hex_b;     // 1/m
   std::vector<double> shear_v0;  // m^3
 
   std::vector<ProbeSpec> probes;

@@ -94,20 +94,37 @@ inline double inverse_cube_root(double x) {
   return y;
 }
 
-// y[i] = inverse_cube_root(x[i]) for N values at once: the N Newton iterations side by side, not
-// one dependent chain after another.
-template <int N>
-void inverse_cube_roots(const double* x, double* y) {
-  double t[N];
-  for (int i = 0; i < N; ++i) {
-    const double xi = detail::inverse_cube_root_in_range(x[i]) ? x[i] : 1.0;
+// Eight doubles side by side (GCC's and Clang's vector extension: the target's widest vectors,
+// or pairs of them); a hexahedron's Gauss points take one lane each.
+typedef double Lanes8 __attribute__((vector_size(64)));
+
+// Eight doubles from p (no alignment asked), and the sum of the lanes.
+inline Lanes8 load_lanes(const double* p) {
+  Lanes8 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline double lane_sum(Lanes8 v) {
+  return ((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7]));
+}
+
+// inverse_cube_root of each lane: the Newton steps in the lanes, the guess and the range check
+// one by one.
+inline Lanes8 inverse_cube_roots(Lanes8 x) {
+  Lanes8 y, t;
+  bool in_range = true;
+  for (int i = 0; i < 8; ++i) {
+    const bool in = detail::inverse_cube_root_in_range(x[i]);
+    in_range &= in;
+    const double xi = in ? x[i] : 1.0;
     y[i] = detail::inverse_cube_root_guess(xi);
     t[i] = xi / 3;
   }
-  for (int k = 0; k < 4; ++k)
-    for (int i = 0; i < N; ++i) y[i] *= 4.0 / 3 - t[i] * (y[i] * y[i] * y[i]);
-  for (int i = 0; i < N; ++i)
-    if (!detail::inverse_cube_root_in_range(x[i])) y[i] = 1 / std::cbrt(x[i]);
+  for (int k = 0; k < 4; ++k) y *= 4.0 / 3 - t * (y * y * y);
+  if (!in_range)
+    for (int i = 0; i < 8; ++i)
+      if (!detail::inverse_cube_root_in_range(x[i])) y[i] = 1 / std::cbrt(x[i]);
+  return y;
 }
 
 // The shear term's energy density W / v0 (above) at deformation gradient F (3 x 3, column-major

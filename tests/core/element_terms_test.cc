@@ -13,6 +13,7 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
@@ -435,7 +436,10 @@ TEST(ElementTermsTest, InverseCubeRootIsTheLibrarysToAFewUnitsInTheLastPlace) {
       x[2] = 1.5e300;
       x[3] = 0.999999;
     }
-    inverse_cube_roots<8>(x, y);
+    Lanes8 lanes;
+    std::memcpy(&lanes, x, sizeof lanes);
+    lanes = inverse_cube_roots(lanes);
+    std::memcpy(y, &lanes, sizeof lanes);
     for (int i = 0; i < 8; ++i) {
       const double want = 1 / std::cbrt(x[i]);
       worst = std::max(worst, std::abs(y[i] - want) / want);

@@ -240,15 +240,22 @@ TEST(CalibrationFullBodyTest, ShearStiffPhantomFollowsEcoflexWithinTwoPercentWit
   std::printf("EF30_0T, shear-stiff full body at its fitted card: average relative error %.3f %%\n",
               100 * e);
   EXPECT_LT(e, 0.02);
-  // Within the fit's bound (layers measured about the rest centroid's axis) and, about the
-  // cylinder's own axis, every layer within 0.6 mm of the others (0.50 mm here; the runs the
-  // issue's grid rejected spread by 3 % of the radius, 0.76 mm, and more). This card is past
-  // its quasi-static buckling onset at 50 % (42-44 % on the square prism, docs/materials.md), so
-  // the spread at the end depends on the perturbation that seeds the sway: a last-bit change in
-  // the shear term's implicit coefficient alone gave 0.92 mm. The library's cards (next test)
-  // are checked for the onset instead.
-  EXPECT_LE(st.layer_spread, FitOptions{}.max_layer_spread * st.half_width);
-  EXPECT_LT(LayerRadiusSpread(m, st.positions), 0.6e-3) << "even layers";
+  // This card is past its quasi-static buckling onset at 50 % (42-44 % on the square prism,
+  // docs/materials.md), so how far its layers have swayed apart at the end of the travel depends
+  // on the perturbation that seeds the sway: a last-bit change in the shear term's implicit
+  // coefficient alone gave 0.92 mm, the element terms' forces summed in another order 1.11 mm
+  // (0.50 mm before either). The homogeneous state is asserted where it is stable: compressed
+  // to 40 % strain, within the fit's bound (layers measured about the rest centroid's axis) and,
+  // about the cylinder's own axis, every layer within 0.6 mm of the others. The library's cards
+  // (next test) are checked for the onset instead.
+  std::printf("at 50 %% strain: layers %.2f mm apart (past the onset: not asserted)\n",
+              1e3 * LayerRadiusSpread(m, st.positions));
+  CompressionStats st40;
+  compression_curve(m, 500e-3 / 60, 0.4, 40, &st40);
+  std::printf("at 40 %% strain: layers %.2f mm apart\n",
+              1e3 * LayerRadiusSpread(m, st40.positions));
+  EXPECT_LE(st40.layer_spread, FitOptions{}.max_layer_spread * st40.half_width);
+  EXPECT_LT(LayerRadiusSpread(m, st40.positions), 0.6e-3) << "even layers";
 }
 
 // The library's EF30_0T card (configs/materials, written by `conica-lab library`, its shear term
