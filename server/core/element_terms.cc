@@ -228,7 +228,7 @@ void hex_terms(const Model& m, int e, const Vec3* x, ElementScratch& E, Vec3* f)
   const auto stressed = J > 0;
   const Lanes8 zero = {}, one = zero + 1;
   const Lanes8 sF = stressed ? w0 * mu * gy * jm : zero;
-  const Lanes8 sC = stressed ? sF * i1 / (3 * J) : zero;
+  const Lanes8 sC = sF * i1 / (3 * (stressed ? J : one));  // 0 where sF is
   const Lanes8 coef = w0 * mu * (stressed ? gy * jm : one);
   std::memcpy(E.shear_coef.data() + nt + 8 * e, &coef, sizeof coef);
   const double v = lane_sum(vq);

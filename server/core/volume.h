@@ -70,9 +70,6 @@ double tet_shape_gradients(const Vec3* x, Vec3* b);
 // v0[q] the point's share of the rest volume (signed). Returns false for a degenerate point.
 bool hex_shape_gradients(const Vec3* x, Vec3* b, double* v0);
 
-// x^(-1/3) for x > 0, within a few units in the last place of 1 / std::cbrt(x) (four Newton
-// steps on y^-3 = x from a guess made on the bits of x; std::cbrt itself outside 1e-300..1e300):
-// a third of cbrt's time and no division, for the shear term's J^(-2/3) at every Gauss point.
 namespace detail {
 // inverse_cube_root's guess, within 3 % of x^(-1/3) for positive normal x.
 inline double inverse_cube_root_guess(double x) {
@@ -86,6 +83,9 @@ inline double inverse_cube_root_guess(double x) {
 inline bool inverse_cube_root_in_range(double x) { return x > 1e-300 && x < 1e300; }
 }  // namespace detail
 
+// x^(-1/3) for x > 0, within a few units in the last place of 1 / std::cbrt(x) (four Newton
+// steps on y^-3 = x from a guess made on the bits of x; std::cbrt itself outside 1e-300..1e300):
+// a third of cbrt's time and no division, for the shear term's J^(-2/3) at every Gauss point.
 inline double inverse_cube_root(double x) {
   if (!detail::inverse_cube_root_in_range(x)) return 1 / std::cbrt(x);
   double y = detail::inverse_cube_root_guess(x);

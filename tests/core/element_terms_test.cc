@@ -359,13 +359,15 @@ TEST(ElementTermsTest, ClosedFormTetrahedronHessianIsTheForcesDifference) {
 // The element stage with both terms on takes the hexahedra in one pass (core/element_terms.cc,
 // hex_terms): its forces are minus a central difference of the two terms' energies, and it keeps
 // what the two terms' own passes keep (their independent routes: the volume from the map's
-// Jacobian, the shear from the rest shape gradients), on a jittered lattice and on one jittered
-// past J <= 0 at some Gauss points.
+// Jacobian, the shear from the rest shape gradients), on a jittered lattice, on one jittered
+// past J <= 0 at some Gauss points, and without the spread.
 TEST(ElementTermsTest, OnePassOverTheHexahedraIsBothTermsPasses) {
-  for (bool inverted : {false, true}) {
-    SCOPED_TRACE(inverted ? "some Gauss points inverted" : "jittered");
+  for (int variant = 0; variant < 3; ++variant) {
+    const bool inverted = variant == 1;
+    SCOPED_TRACE(variant == 0 ? "jittered" : inverted ? "some Gauss points inverted" : "no spread");
     Body body = ElementBody(false);
     body.m.shear_stiffening = 0.3;
+    if (variant == 2) body.m.spread_modulus = 0;
     const Model& m = body.m;
     Workspace ws(m), ws_terms(m);
     State s = make_state(m);
