@@ -2,7 +2,7 @@
 // and settled: the force pass (springs and element terms, with what the system keeps), the
 // element terms' forces alone, the system's preparation, the preparation and one product with
 // A, and one application of the factor's preconditioner (docs/performance.md, "The element
-// terms' forces in one pass").
+// terms' forces in one pass, in vector lanes").
 //   BENCH_SCENE=configs/phantom-ef30.pbtxt build/bin/bench_body_parts
 //       --benchmark_repetitions=5 --benchmark_report_aggregates_only=true   (one line)
 // (scenes naming a material need CONICA_MATERIAL_PATH; BENCH_UP=x|y|z the axis pressed along,

@@ -85,7 +85,7 @@ inline bool inverse_cube_root_in_range(double x) { return x > 1e-300 && x < 1e30
 
 // x^(-1/3) for x > 0, within a few units in the last place of 1 / std::cbrt(x) (four Newton
 // steps on y^-3 = x from a guess made on the bits of x; std::cbrt itself outside 1e-300..1e300):
-// a third of cbrt's time and no division, for the shear term's J^(-2/3) at every Gauss point.
+// no library call and no division, for the shear term's J^(-2/3) at every Gauss point.
 inline double inverse_cube_root(double x) {
   if (!detail::inverse_cube_root_in_range(x)) return 1 / std::cbrt(x);
   double y = detail::inverse_cube_root_guess(x);
